@@ -1,0 +1,93 @@
+# lampfab: `make lamp TARGET=image.png` designs a caustic lamp into build/<NAME>/.
+# Targets are files; each stage writes its report last, so a killed stage is redone.
+# Phony names: lamp, test, clean, bench, help, and one alias per stage (make optimize).
+
+TARGET  ?= examples/apple.png
+NAME    ?= $(basename $(notdir $(TARGET)))
+PROFILE ?= default
+FAB     ?= sla_resin
+ALLOW_FAIL ?=
+TARGET_FRONT ?=
+TARGET_LEFT  ?=
+TARGET_RIGHT ?=
+TARGET_FLOOR ?=
+
+B      := build/$(NAME)
+VENV   := .venv
+PY     := $(VENV)/bin/python
+READY  := $(VENV)/.installed
+ARGS   = --out "$(B)" --profile "$(PROFILE)" --fab "$(FAB)"
+RUN    = $(PY) stages/$(1).py $(ARGS)
+TARGETS = --target "$(TARGET)" --target-front "$(TARGET_FRONT)" --target-left "$(TARGET_LEFT)" \
+          --target-right "$(TARGET_RIGHT)" --target-floor "$(TARGET_FLOOR)"
+
+.DELETE_ON_ERROR:
+.PHONY: lamp test clean bench help prepare plan init optimize solid check export verify FORCE
+
+lamp: $(B)/report.html
+	@$(PY) -m lampfab.cli summary $(ARGS)
+
+help:
+	@echo "make lamp TARGET=image.png [NAME=..] [PROFILE=draft|default|fine] [FAB=sla_resin|acrylic_cnc4|...]"
+	@echo "make <stage> TARGET=..   one stage and what it needs: prepare plan init optimize solid check export verify"
+	@echo "make test | make bench | make clean"
+	@echo "variables: TARGET_FRONT/LEFT/RIGHT/FLOOR (per-wall images), ALLOW_FAIL=1 (go on after a failed check)"
+	@$(PY) -m lampfab.cli profiles 2>/dev/null || true
+
+# -- setup: system libraries, virtual environment, Python packages ----------------------
+$(READY): pyproject.toml stages/00_setup.sh
+	bash stages/00_setup.sh
+	python3 -m venv $(VENV)
+	$(VENV)/bin/pip install --quiet --upgrade pip
+	$(VENV)/bin/pip install --quiet -e '.[test]'
+	touch $@
+
+# -- the pipeline ----------------------------------------------------------------------
+# Rewritten only when the resolved profiles or the input images change.
+$(B)/settings.json: FORCE | $(READY)
+	@$(PY) -m lampfab.cli settings $(ARGS) $(TARGETS)
+
+$(B)/prepare.json: $(B)/settings.json
+	$(call RUN,10_prepare) $(TARGETS)
+
+$(B)/plan.json: $(B)/settings.json
+	$(call RUN,20_plan)
+
+$(B)/init.json: $(B)/prepare.json
+	$(call RUN,25_init)
+
+$(B)/optimize.json: $(B)/init.json
+	$(call RUN,30_optimize)
+
+$(B)/solid.json: $(B)/optimize.json
+	$(call RUN,40_solid)
+
+$(B)/checks.json: $(B)/solid.json
+	$(call RUN,50_check) $(if $(ALLOW_FAIL),--allow-fail)
+
+$(B)/export.json: $(B)/checks.json
+	$(call RUN,60_export)
+
+$(B)/report.html: $(B)/export.json $(B)/plan.json
+	$(call RUN,70_verify)
+
+prepare: $(B)/prepare.json
+plan: $(B)/plan.json
+init: $(B)/init.json
+optimize: $(B)/optimize.json
+solid: $(B)/solid.json
+check: $(B)/checks.json
+export: $(B)/export.json
+verify: $(B)/report.html
+
+# -- development -----------------------------------------------------------------------
+test: $(READY)
+	$(PY) -m pytest -m "not gpu" -q
+
+bench: $(READY)
+	$(PY) bench/bench_methods.py
+
+clean:
+	rm -rf build
+
+FORCE:

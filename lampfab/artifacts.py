@@ -1,0 +1,153 @@
+"""Reading and writing every artifact lampfab makes.  The only module that touches files.
+
+Every write goes to a temporary file in the same folder and is renamed into place, so
+a stage killed mid-write never leaves a file that Make takes as done.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+
+from .errors import LampfabError
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, suffix: str = ""):
+    """Yield a temporary path beside ``path``; rename it onto ``path`` on success."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def write_json(path, data: dict) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=2, default=_jsonable) + "\n")
+
+
+def read_json(path) -> dict:
+    try:
+        return json.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise LampfabError(f"{path}: not found (run the stage that makes it first)") from None
+    except json.JSONDecodeError as exc:
+        raise LampfabError(f"{path}: not valid JSON ({exc})") from None
+
+
+def write_npz(path, **arrays) -> None:
+    with atomic_path(path, suffix=".npz") as tmp:
+        np.savez(tmp, **arrays)
+
+
+def read_npz(path) -> dict:
+    try:
+        with np.load(path) as data:
+            return {k: data[k] for k in data.files}
+    except FileNotFoundError:
+        raise LampfabError(f"{path}: not found (run the stage that makes it first)") from None
+
+
+def write_png(path, image: np.ndarray, normalize: bool = True) -> None:
+    """Write a (rows, cols) or (rows, cols, 3) float image as an 8-bit sRGB PNG.
+
+    ``normalize`` scales so the 99.5th percentile maps to white (linear input).
+    """
+    from PIL import Image
+
+    img = np.asarray(image, dtype=np.float64)
+    if normalize:
+        top = np.percentile(img, 99.5) if img.size else 1.0
+        img = img / top if top > 0 else img
+    img = np.clip(img, 0.0, 1.0)
+    srgb = np.where(img <= 0.0031308, 12.92 * img, 1.055 * np.power(img, 1 / 2.4) - 0.055)
+    with atomic_path(path, suffix=".png") as tmp:
+        Image.fromarray(np.round(srgb * 255).astype(np.uint8)).save(tmp, format="PNG")
+
+
+def write_linear_png16(path, image: np.ndarray) -> None:
+    """Write a (rows, cols) linear image in [0, 1] losslessly as a 16-bit grey PNG."""
+    from PIL import Image
+
+    data = np.round(np.clip(image, 0, 1) * 65535).astype(np.uint16)
+    with atomic_path(path, suffix=".png") as tmp:
+        Image.fromarray(data).save(tmp, format="PNG")
+
+
+def read_linear_png16(path) -> np.ndarray:
+    """Read a target written by ``write_linear_png16``: (rows, cols) float64 in [0, 1]."""
+    from PIL import Image
+
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im, dtype=np.float64) / 65535.0
+    except FileNotFoundError:
+        raise LampfabError(f"{path}: not found (run prepare first)") from None
+
+
+def file_sha256(path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def versions() -> dict:
+    out = {"python": sys.version.split()[0], "platform": platform.platform()}
+    for pkg in ("lampfab", "mitsuba", "drjit", "manifold3d", "trimesh", "pymeshlab",
+                "cadquery-ocp-novtk", "numpy", "scipy", "pillow", "scikit-image"):
+        with contextlib.suppress(metadata.PackageNotFoundError):
+            out[pkg] = metadata.version(pkg)
+    return out
+
+
+class StageReport:
+    """The JSON report every stage writes: inputs (with hashes), settings, versions,
+    wall time and key figures."""
+
+    def __init__(self, stage: str, inputs: dict[str, str], settings: dict):
+        self.stage = stage
+        self.start = time.time()
+        self.data = {
+            "stage": stage,
+            "inputs": {k: {"path": str(v), "sha256": file_sha256(v)} for k, v in inputs.items()
+                       if v and Path(v).is_file()},
+            "settings": settings,
+            "versions": versions(),
+            "figures": {},
+        }
+
+    def figure(self, **figures) -> None:
+        self.data["figures"].update(figures)
+
+    def write(self, path) -> None:
+        self.data["wall_time_s"] = round(time.time() - self.start, 3)
+        write_json(path, self.data)
+
+
+def _jsonable(obj):
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serializable: {type(obj).__name__}")

@@ -1,0 +1,463 @@
+"""Per-cell fields of the outer surface that the fabrication checks read (see checks.py).
+
+Everything is evaluated on one fine (mu, mv) sample grid of the outer surface: u_i =
+2*pi*i/mu (periodic) and z_j = H*j/(mv-1), the same grid ``surface.sample`` uses, so a
+cell of any field maps to one pixel of the unrolled surface in ``checks.png``.
+
+Units: mm, rad inside, degrees where a name says ``deg``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from . import surface
+
+# Samples per triangle edge are chosen so that the inner-layer point cloud has about this
+# many points: enough for every outer sample to find its nearest inner triangle among a
+# few candidates (the distance itself is then exact), few enough for a fast KD-tree.
+_INNER_SAMPLES = 200_000
+# Never sample the inner layer finer than this: a finer cloud only costs time, the
+# distance is computed exactly on the candidate triangles anyway.
+_MIN_SPACING_MM = 0.1
+# Candidate triangles per outer sample (parents of the k nearest inner samples).  A
+# sample on a shared vertex is stored once per incident triangle, so k = 6 covers the
+# fan around a vertex as well as the interior of a face.
+_CANDIDATES = 6
+# The coarsest sample level keeps at least this many points (coarser levels would not
+# save time: the query cost is per point, the tree is tiny).
+_COARSEST_SAMPLES = 100
+# A level answers points closer than this many of its spacings; farther points keep the
+# coarser level's answer (see distance_to_mesh).
+_NEAR_FACTOR = 16.0
+# Points per KD query batch: bounds the (n, k, 3) temporaries to ~100 MB.
+_CHUNK = 131072
+
+
+@lru_cache(maxsize=16)
+def periodic_deriv(n: int, m: int, d: int) -> np.ndarray:
+    """(m, n) float64: nodes -> d-th derivative (per rad^d) of the periodic spline in u.
+
+    The periodic cubic interpolant at uniform nodes is unique, so this is the spline of
+    ``surface.periodic_matrix`` (equal to rounding for d = 0).  Built from uniform cubic
+    B-splines: coefficients c solve the circulant system (c[i-1] + 4 c[i] + c[i+1]) / 6 =
+    y[i], inverted by FFT.  scipy's periodic ``make_interp_spline`` solves one Woodbury
+    system per column: 1.1 s for (256, 1024), this takes milliseconds.
+    """
+    h = 2 * np.pi / n
+    t = np.arange(m) * (n / m)                               # sample positions in knot units
+    j = np.floor(t + 1e-12).astype(np.int64)
+    f = t - j
+    if d == 0:
+        w = [(1 - f) ** 3 / 6, (3 * f**3 - 6 * f**2 + 4) / 6, (-3 * f**3 + 3 * f**2 + 3 * f + 1) / 6, f**3 / 6]
+    elif d == 1:
+        w = [-(1 - f) ** 2 / 2, 1.5 * f**2 - 2 * f, -1.5 * f**2 + f + 0.5, f**2 / 2]
+    elif d == 2:
+        w = [1 - f, 3 * f - 2, 1 - 3 * f, f]
+    else:
+        raise ValueError("derivative order 0..2")
+    basis = np.zeros((m, n))
+    rows = np.arange(m)
+    for off, wk in zip((-1, 0, 1, 2), w):
+        np.add.at(basis, (rows, (j + off) % n), wk / h**d)
+    lam = (4 + 2 * np.cos(2 * np.pi * np.arange(n) / n)) / 6
+    col = np.real(np.fft.ifft(1.0 / lam))                    # first column of the inverse
+    inv = col[(np.arange(n)[:, None] - np.arange(n)[None, :]) % n]
+    return basis @ inv
+
+
+@lru_cache(maxsize=16)
+def open_deriv(n: int, m: int, d: int, height_mm: float) -> np.ndarray:
+    """(m, n) float64: nodes -> d-th derivative (per mm^d) of the not-a-knot spline in z.
+
+    ``surface.open_matrix`` works on v in [0, 1]; z = H*v, so d/dz = (1/H) d/dv.
+    """
+    from scipy.interpolate import make_interp_spline
+
+    x = np.linspace(0.0, 1.0, n)
+    k = 3 if n >= 4 else n - 1
+    spline = make_interp_spline(x, np.eye(n), k=k)
+    if d > k:
+        return np.zeros((m, n))
+    return spline(np.linspace(0.0, 1.0, m), nu=d) / height_mm**d
+
+
+@dataclass
+class Fields:
+    """Per-cell quantities on the (mu, mv) grid of the outer surface (mm, deg).
+
+    ``u`` (mu,) rad and ``z`` (mv,) mm are the grid; ``xyz`` (mu, mv, 3) the surface points;
+    ``normal`` (mu, mv, 3) the outward unit normals; ``area`` (mu, mv) mm^2 the surface area
+    of each cell; ``wall`` (mu, mv) mm the signed distance from the outer surface to the
+    inner layer or the bore (negative: the outer surface is inside the cavity);
+    ``slope`` (mu, mv) deg the tilt against the radial direction (as ``surface.slopes_deg``);
+    ``concave_radius`` (mu, mv) mm the smallest concave radius of curvature (inf where the
+    surface is convex in every direction); ``overhang`` (mu, mv) deg how far a down-facing
+    cell leans past vertical (0 for up-facing and vertical cells).  The caps are single
+    numbers: ``wall_top``/``wall_base`` mm with the points where they are thinnest.
+    """
+    u: np.ndarray
+    z: np.ndarray
+    xyz: np.ndarray
+    normal: np.ndarray
+    area: np.ndarray
+    wall: np.ndarray
+    slope: np.ndarray
+    concave_radius: np.ndarray
+    overhang: np.ndarray
+    wall_top: float
+    wall_top_xyz: np.ndarray
+    wall_base: float
+    wall_base_xyz: np.ndarray
+    bore_top_mm: float
+
+
+def compute_fields(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: np.ndarray,
+                   inner_faces: np.ndarray, mount_radius_mm: float,
+                   samples: tuple[int, int] = (1024, 256)) -> Fields:
+    """All per-cell fields of the outer surface for heights (nu, nv) mm on a (mu, mv) grid.
+
+    ``samples`` is raised to at least twice the node counts so that every spline cell is
+    sampled inside, not only at its nodes.
+    """
+    heights = np.asarray(heights, np.float64)
+    nu, nv = heights.shape
+    mu, mv = max(samples[0], 2 * nu), max(samples[1], 2 * nv)
+    H = cyl.height_mm
+    pu = [periodic_deriv(nu, mu, d) for d in range(3)]
+    pz = [open_deriv(nv, mv, d, float(H)) for d in range(3)]
+    # Radius and its derivatives from the spline itself (exact, no finite differences):
+    # curvature needs second derivatives, which differencing would make noisy.
+    s = pu[0] @ heights @ pz[0].T
+    r = cyl.radius_mm + s
+    r_u = pu[1] @ heights @ pz[0].T
+    r_z = pu[0] @ heights @ pz[1].T
+    r_uu = pu[2] @ heights @ pz[0].T
+    r_uz = pu[1] @ heights @ pz[1].T
+    r_zz = pu[0] @ heights @ pz[2].T
+
+    u = cyl.node_u(mu)
+    z = cyl.node_z(mv)
+    xyz = surface.points(cyl, s)
+    cu, su = np.cos(u)[:, None], np.sin(u)[:, None]
+
+    # In the local frame (e_r, e_theta, e_z): X_u = (r_u, r, 0), X_z = (r_z, 0, 1), so the
+    # outward normal X_u x X_z = (r, -r_u, -r r_z) and |X_u x X_z| du dz is the area.
+    n_len = np.sqrt(r**2 + r_u**2 + (r * r_z) ** 2)
+    n_r, n_t, n_z = r / n_len, -r_u / n_len, -r * r_z / n_len
+    normal = np.stack([n_r * cu - n_t * su, n_r * su + n_t * cu, n_z], axis=-1)
+    dz = np.full(mv, H / (mv - 1))
+    dz[[0, -1]] *= 0.5  # the end rows own half a cell: the areas sum to the surface area
+    area = n_len * (2 * np.pi / mu) * dz[None, :]
+
+    # Overhang for an upright print: a cell faces down when n_z < 0; asin(-n_z) is how far
+    # it leans past vertical (0 = vertical wall, 90 = horizontal ceiling).
+    overhang = np.degrees(np.arcsin(np.clip(-n_z, 0.0, 1.0)))
+
+    concave_radius = _concave_radius(r, r_u, r_z, r_uu, r_uz, r_zz)
+    # Tilt against the radial direction, as ``surface.slopes_deg`` defines it
+    # (atan(hypot(r_u / r, r_z))) but from the spline's exact derivatives: slopes_deg
+    # differences the samples (one-sided at the caps) and builds scipy's periodic matrix,
+    # 1.1 s for a new (nu, mu).  The two agree to ~0.1 deg inside (tests).
+    slope = np.degrees(np.arctan(np.hypot(r_u / r, r_z)))
+
+    iv = np.asarray(inner_vertices, np.float64)
+    fi = np.asarray(inner_faces, np.int64)
+    dist, side = distance_to_mesh(xyz.reshape(-1, 3), iv, fi)
+    dist = dist.reshape(mu, mv) * _settle_side(xyz, dist.reshape(mu, mv), side.reshape(mu, mv), iv, fi)
+    # The bore (a cylinder of radius mount_radius around the axis, from the base up to the
+    # cavity) is material removed too: below its top the wall is also r - mount_radius.
+    bore_top = float(iv[:, 2].min())
+    bore_wall = np.where(z[None, :] <= bore_top, r - mount_radius_mm, np.inf)
+    wall = np.minimum(dist, bore_wall)
+
+    # Caps are planes, so the thinnest cap wall is the plane's distance to the nearest
+    # inner vertex (a mesh's extreme along a direction is always at a vertex).
+    # Where a flat roof ties, point at the middle of the tied vertices (its centre).
+    top_z = float(iv[:, 2].max())
+    tied = iv[iv[:, 2] >= top_z - 1e-9]
+    wall_top = float(H - top_z)
+    top_xyz = np.array([*tied[:, :2].mean(axis=0), H])
+    # The base only exists outside the bore: inner vertices over the bore sit over air.
+    rho = np.hypot(iv[:, 0], iv[:, 1])
+    over_base = rho > mount_radius_mm
+    if over_base.any():
+        cand = np.where(over_base, iv[:, 2], np.inf)
+        wall_base = float(cand.min())
+        tied = iv[cand <= wall_base + 1e-9]
+        base_xyz = np.array([*tied[:, :2].mean(axis=0), 0.0])
+    else:
+        wall_base, base_xyz = float("inf"), np.zeros(3)
+
+    return Fields(u=u, z=z, xyz=xyz, normal=normal, area=area, wall=wall, slope=slope,
+                  concave_radius=concave_radius, overhang=overhang, wall_top=wall_top,
+                  wall_top_xyz=top_xyz, wall_base=wall_base, wall_base_xyz=base_xyz,
+                  bore_top_mm=bore_top)
+
+
+def _settle_side(xyz: np.ndarray, dist: np.ndarray, side: np.ndarray, vertices: np.ndarray,
+                 faces: np.ndarray) -> np.ndarray:
+    """(mu, mv) +1 where the outer surface is outside the inner layer, -1 inside it.
+
+    The outer surface can only pass from one side of the inner layer to the other where
+    it crosses it, and there its distance goes through 0.  Two neighbouring cells whose
+    distances both exceed half their spacing are on the same side (|d1| + |d2| > |p1 - p2|
+    rules out a crossing between them), so every connected region of such cells has one
+    side, settled by the winding number of the inner layer at its clearest cell.  Cells
+    closer than that are near the mesh, where the local side from the nearest triangle is
+    reliable.
+    """
+    from scipy import ndimage
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from .inner import winding_number
+
+    step_u = np.linalg.norm(np.roll(xyz, -1, axis=0) - xyz, axis=-1).max()
+    step_z = np.linalg.norm(np.diff(xyz, axis=1), axis=-1).max() if xyz.shape[1] > 1 else 0.0
+    clear = dist > 0.55 * max(step_u, step_z)             # 10 % margin over the half spacing
+    labels, n = ndimage.label(clear)
+    out = side.copy()
+    if n == 0:
+        return out
+    # u is periodic: regions touching both ends of the u range are one region.
+    a, b = labels[0], labels[-1]
+    both = (a > 0) & (b > 0)
+    graph = coo_matrix((np.ones(both.sum()), (a[both] - 1, b[both] - 1)), shape=(n, n))
+    _, comp = connected_components(graph, directed=False)
+    region = np.where(labels > 0, comp[np.maximum(labels, 1) - 1], -1)
+    for r in np.unique(region[region >= 0]):
+        cells = region == r
+        pick = np.unravel_index(np.argmax(np.where(cells, dist, -np.inf)), dist.shape)
+        inside = winding_number(vertices, faces, xyz[pick]) > 0.5
+        out[cells] = -1.0 if inside else 1.0
+    return out
+
+
+def _concave_radius(r, r_u, r_z, r_uu, r_uz, r_zz) -> np.ndarray:
+    """(mu, mv) mm: 1 / (largest principal curvature) where it is concave, inf elsewhere.
+
+    Fundamental forms of X(u, z) = r (cos u, sin u, 0) + (0, 0, z) with the outward unit
+    normal n.  In (e_r, e_theta, e_z): X_uu = (r_uu - r, 2 r_u, 0), X_uz = (r_uz, r_z, 0),
+    X_zz = (r_zz, 0, 0).  With n outward, a convex bulge (the plain cylinder: kappa = -1/r)
+    has negative normal curvature; positive curvature curves toward the outside, i.e. a
+    hollow that a ball of radius > 1/kappa cannot touch the bottom of.
+    """
+    n_len = np.sqrt(r**2 + r_u**2 + (r * r_z) ** 2)
+    E = r_u**2 + r**2
+    F = r_u * r_z
+    G = r_z**2 + 1.0
+    L = ((r_uu - r) * r - 2 * r_u**2) / n_len
+    M = (r_uz * r - r_z * r_u) / n_len
+    N = r_zz * r / n_len
+    det_i = E * G - F**2
+    mean = (E * N - 2 * F * M + G * L) / (2 * det_i)
+    gauss = (L * N - M**2) / det_i
+    k_max = mean + np.sqrt(np.maximum(mean**2 - gauss, 0.0))
+    with np.errstate(divide="ignore"):
+        # Curvatures below 1e-9 / mm are flat for any tool (radius > 1 km).
+        return np.where(k_max > 1e-9, 1.0 / np.maximum(k_max, 1e-300), np.inf)
+
+
+def sample_mesh(vertices: np.ndarray, faces: np.ndarray, spacing_mm: float, thin_mm: float = 0.0):
+    """Points on a triangle mesh no farther than ~spacing from each other, each stored once.
+
+    Vertices once each, points along each edge once (the first face using it is the
+    parent), then interior lattice points of every face: along the two edges from the
+    corner that needs the fewest points, so long thin triangles (a cylinder's side
+    strips) get a few columns along their length instead of a square lattice.  Storing
+    shared points once matters: a fan's centre repeated 256 times makes a KD-tree leaf it
+    cannot split, and queries near it crawl.  ``thin_mm`` > 0 keeps one point per cube of
+    that size.  Returns ((k, 3) float64 mm points, (k,) int64 parent face).
+    """
+    nf = len(faces)
+    tri = vertices[faces]                                    # (F, 3, 3)
+    # Vertices: parent = any face using the vertex.
+    vparent = np.full(len(vertices), -1, np.int64)
+    vparent[faces.ravel()] = np.repeat(np.arange(nf), 3)
+    used = vparent >= 0
+    out_pts, out_par = [vertices[used]], [vparent[used]]
+    # Edges: unique undirected edges, interior points at <= spacing.
+    e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    key = e[:, 0] * len(vertices) + e[:, 1]
+    _, first = np.unique(key, return_index=True)
+    e, epar = e[first], first // 3
+    elen = np.linalg.norm(vertices[e[:, 1]] - vertices[e[:, 0]], axis=1)
+    ne = np.maximum(np.ceil(elen / spacing_mm), 1).astype(np.int64)
+    cnt = ne - 1                                             # interior points per edge
+    eid = np.repeat(np.arange(len(e)), cnt)
+    k = np.arange(len(eid)) - np.repeat(np.cumsum(cnt) - cnt, cnt) + 1
+    f = (k / ne[eid])[:, None]
+    out_pts.append(vertices[e[eid, 0]] * (1 - f) + vertices[e[eid, 1]] * f)
+    out_par.append(epar[eid])
+    # Face interiors: lattice from the cheapest corner, strictly inside.
+    best = None
+    for a in range(3):
+        n1 = np.maximum(np.ceil(np.linalg.norm(tri[:, (a + 1) % 3] - tri[:, a], axis=1) / spacing_mm), 1)
+        n2 = np.maximum(np.ceil(np.linalg.norm(tri[:, (a + 2) % 3] - tri[:, a], axis=1) / spacing_mm), 1)
+        cand = [(n1 - 1) * (n2 - 1), np.full(nf, a), n1.astype(np.int64), n2.astype(np.int64)]
+        best = cand if best is None else [np.where(cand[0] < best[0], c, b) for c, b in zip(cand, best)]
+    cost, corner, n1, n2 = (np.asarray(x, np.int64) for x in best)
+    parent = np.repeat(np.arange(nf), cost)
+    k = np.arange(len(parent)) - np.repeat(np.cumsum(cost) - cost, cost)
+    cols = n2[parent] - 1
+    s = (k // np.maximum(cols, 1) + 1) / n1[parent]
+    t = (k % np.maximum(cols, 1) + 1) / n2[parent]
+    keep = s + t < 1.0 - 1e-9
+    parent, s, t = parent[keep], s[keep], t[keep]
+    c = corner[parent]
+    rows = tri[parent]
+    ar = np.arange(len(parent))
+    p0 = rows[ar, c]
+    out_pts.append(p0 + s[:, None] * (rows[ar, (c + 1) % 3] - p0) + t[:, None] * (rows[ar, (c + 2) % 3] - p0))
+    out_par.append(parent)
+    pts, par = np.concatenate(out_pts), np.concatenate(out_par)
+    if thin_mm > 0:
+        # One point per thin_mm voxel: a mesh of many long thin triangles (a 1024-sided
+        # cylinder: edges 0.1 mm apart) is otherwise sampled along every edge, and a coarse
+        # level would be as dense across the edges as the mesh itself.
+        q = np.floor((pts - pts.min(axis=0)) / thin_mm).astype(np.int64)
+        dims = q.max(axis=0) + 1
+        key = (q[:, 0] * dims[1] + q[:, 1]) * dims[2] + q[:, 2]
+        _, keep = np.unique(key, return_index=True)
+        pts, par = pts[keep], par[keep]
+    return pts, par
+
+
+def closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """(n, 3) closest points on triangles (a, b, c) to points p, all (n, 3) mm."""
+    ab, ac = b - a, c - a
+    v, w = _closest_params(p - a, ab, ac, _dot(ab, ab), _dot(ab, ac), _dot(ac, ac))
+    return a + v[:, None] * ab + w[:, None] * ac
+
+
+def _dot(x, y):
+    return np.einsum("ij,ij->i", x, y)
+
+
+def _closest_params(ap, ab, ac, abab, abac, acac):
+    """Closest point a + v*ab + w*ac of each triangle to each point: ((n,), (n,)).
+
+    Ericson, Real-Time Collision Detection 5.1.5 (Voronoi regions of the triangle),
+    vectorized.  Every region's answer is written in (v, w), so the region logic runs on
+    (n,) scalars; ab, ac and their dot products come precomputed per triangle.
+    Degenerate triangles fall back to their vertices and edges.
+    """
+    d1, d2 = _dot(ab, ap), _dot(ac, ap)
+    # The other four dot products follow from these: bp = ap - ab, cp = ap - ac.
+    d3, d4 = d1 - abab, d2 - abac
+    d5, d6 = d1 - abac, d2 - acac
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+
+    def safe(num, den):
+        ok = np.abs(den) > 1e-300
+        return np.where(ok, num / np.where(ok, den, 1.0), 0.0)
+
+    den = va + vb + vc
+    v, w = safe(vb, den), safe(vc, den)                                  # inside the face
+    wbc = safe(d4 - d3, (d4 - d3) + (d5 - d6))
+    m = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)                      # edge BC
+    v, w = np.where(m, 1 - wbc, v), np.where(m, wbc, w)
+    m = (vb <= 0) & (d2 >= 0) & (d6 <= 0)                                # edge AC
+    v, w = np.where(m, 0.0, v), np.where(m, safe(d2, d2 - d6), w)
+    m = (vc <= 0) & (d1 >= 0) & (d3 <= 0)                                # edge AB
+    v, w = np.where(m, safe(d1, d1 - d3), v), np.where(m, 0.0, w)
+    m = (d6 >= 0) & (d5 <= d6)                                           # vertex C
+    v, w = np.where(m, 0.0, v), np.where(m, 1.0, w)
+    m = (d3 >= 0) & (d4 <= d3)                                           # vertex B
+    v, w = np.where(m, 1.0, v), np.where(m, 0.0, w)
+    m = (d1 <= 0) & (d2 <= 0)                                            # vertex A
+    v, w = np.where(m, 0.0, v), np.where(m, 0.0, w)
+    return v, w
+
+
+def distance_to_mesh(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray):
+    """Distance from points (n, 3) to a triangle mesh: ((n,) mm, (n,) local side +1/-1).
+
+    Candidates are the parent triangles of the nearest points of a sample of the mesh
+    (KD-tree); the distance to each candidate is exact (``closest_on_triangles``), so a
+    result is never below the true distance, and above it only where the true nearest
+    triangle is not a candidate, by about (sample spacing)^2 / (8 * distance).
+
+    An exact nearest-neighbour query far from a curved surface visits every KD leaf whose
+    box comes within the distance: at 20 mm from a 0.2 mm sample it took ~100 us per
+    point (25 s for 1024 x 256).  So the sample is a pyramid, each level 4x coarser, and a
+    point is answered at the coarsest level whose spacing is <= distance / 16 (measured
+    against brute force on a 1024-sided cylinder: <= 0.4 % too large beyond 3 mm, <= 0.4 um
+    within 3 mm, where the finest level answers and where the checks need it exact).  Every query then stays near its sample in units of
+    its spacing and costs a few microseconds.
+
+    The side is the sign of (p - q) . n of the nearest candidate (+1: the side the normals
+    point to); where several candidates share the closest point q (an edge or a vertex)
+    the one whose normal is most nearly along p - q decides, which picks the right side at
+    convex and concave edges.  It is only reliable where the true nearest triangle is a
+    candidate, i.e. near the mesh: ``compute_fields`` settles the side of far points by
+    winding numbers instead.
+    """
+    from scipy.spatial import cKDTree
+
+    points = np.asarray(points, np.float64)
+    tri = vertices[faces]
+    ab, ac = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    cross = np.cross(ab, ac)
+    area = 0.5 * np.linalg.norm(cross, axis=1).sum()
+    fn = cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-300)
+    tris = (tri[:, 0], ab, ac, _dot(ab, ab), _dot(ab, ac), _dot(ac, ac), fn)
+    spacing = max(_MIN_SPACING_MM, float(np.sqrt(area / _INNER_SAMPLES)))
+    levels = [spacing]
+    while area / (levels[-1] * 4) ** 2 > _COARSEST_SAMPLES:
+        levels.append(levels[-1] * 4)
+    dist = np.full(len(points), np.inf)
+    sign = np.ones(len(points))
+    todo = np.arange(len(points))
+    for li in range(len(levels) - 1, -1, -1):
+        if li < len(levels) - 1:
+            # Refine only where this level is still "near": distance <= 4 * 4 * spacing.
+            todo = np.flatnonzero(dist < _NEAR_FACTOR * levels[li])
+        if len(todo) == 0:
+            continue
+        # Coarse levels keep one point per half-spacing voxel (0.4 % worst error at 20 mm,
+        # against 1.8 % for one per spacing); the finest keeps all, so that even 0.1 mm
+        # from a mesh of 0.1 mm wide facets the nearest facet is a candidate (0.4 um worst
+        # error measured, 12 um with half-spacing thinning).
+        pts, parent = sample_mesh(vertices, faces, levels[li], 0.0 if li == 0 else 0.5 * levels[li])
+        tree = cKDTree(pts)
+        k = min(_CANDIDATES, len(pts))
+        for lo in range(0, len(todo), _CHUNK):
+            sel = todo[lo:lo + _CHUNK]
+            d, s = _candidates_distance(points[sel], tree, parent, k, tris)
+            better = d < dist[sel]
+            dist[sel] = np.where(better, d, dist[sel])
+            sign[sel] = np.where(better, s, sign[sel])
+    return dist, sign
+
+
+def _candidates_distance(p, tree, parent, k, tris):
+    """Exact distance and side for points p (n, 3) against the parents of their k nearest
+    samples: ((n,) mm, (n,) +1 on the normals' side / -1 behind)."""
+    a, ab, ac, abab, abac, acac, fn = tris
+    _, idx = tree.query(p, k=k, workers=-1)
+    cand = np.sort(parent[np.asarray(idx).reshape(len(p), k)], axis=1)  # (n, k) triangle ids
+    # Neighbouring samples often share a parent: evaluate each (point, triangle) once.
+    fresh = np.ones_like(cand, dtype=bool)
+    fresh[:, 1:] = cand[:, 1:] != cand[:, :-1]
+    row, col = np.nonzero(fresh)
+    cf = cand[row, col]
+    tab, tac = ab[cf], ac[cf]
+    diff = p[row] - a[cf]                                               # ap, then p - q
+    v, w = _closest_params(diff, tab, tac, abab[cf], abac[cf], acac[cf])
+    diff -= v[:, None] * tab + w[:, None] * tac
+    dist = np.full((len(p), k), np.inf)
+    side = np.zeros((len(p), k))
+    dist[row, col] = np.sqrt(_dot(diff, diff))
+    side[row, col] = _dot(diff, fn[cf])
+    dmin = dist.min(axis=1, keepdims=True)
+    cos = np.abs(side) / np.maximum(dist, 1e-300)
+    pick = np.argmax(np.where(dist <= dmin * (1 + 1e-9) + 1e-12, cos, -1.0), axis=1)
+    sgn = np.where(side[np.arange(len(p)), pick] < 0, -1.0, 1.0)
+    return dmin[:, 0], sgn

@@ -1,0 +1,145 @@
+"""``lampfab``: the stages as commands, for people who don't use Make.
+
+    lampfab lamp IMAGE              every stage, into build/<image stem>/
+    lampfab <stage> --out DIR ...   one stage (prepare, plan, init, optimize, solid,
+                                    check, export, verify)
+    lampfab profiles                the design and fabrication profiles
+
+User errors print one line and exit 2; a failed fabrication check exits 3.
+Heavy libraries load inside the stages, so ``--help`` answers at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+STAGE_HELP = {
+    "prepare": "read the image(s) and write one linear target per wall (targets/)",
+    "plan": "render the plain lens in the room: where its light falls (plan.json, plan/)",
+    "init": "transport-based first lens in seconds (init.npz)",
+    "optimize": "refine with Mitsuba ptracer gradients, the source's method (heightmap.npz)",
+    "solid": "merge outer shell, inner layer and LED bore into one solid (solid.npz)",
+    "check": "manufacturability against the fabrication profile (checks.json, checks.png)",
+    "export": "lens.stl, lens.step and design.json, each read back and checked",
+    "verify": "render the exported STL with its true facets; report.html",
+}
+WALLS = ("front", "left", "right", "floor")
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--out", required=True, help="build folder, e.g. build/apple")
+    p.add_argument("--profile", default="default", help="design profile name or .toml path (default: default)")
+    p.add_argument("--fab", default="sla_resin", help="fabrication profile name or .toml path (default: sla_resin)")
+
+
+def _targets(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--target", default="", help="image projected on every wall (PNG or JPEG)")
+    for wall in WALLS:
+        p.add_argument(f"--target-{wall}", default="", help=f"image for the {wall} only")
+
+
+def parser() -> argparse.ArgumentParser:
+    top = argparse.ArgumentParser(prog="lampfab", description="Design a caustic projection lamp from an image.")
+    sub = top.add_subparsers(dest="command", required=True)
+    lamp = sub.add_parser("lamp", help="run every stage for one image")
+    lamp.add_argument("image", help="the target image (PNG or JPEG)")
+    lamp.add_argument("--out", default="", help="build folder (default: build/<image stem>)")
+    lamp.add_argument("--profile", default="default")
+    lamp.add_argument("--fab", default="sla_resin")
+    lamp.add_argument("--allow-fail", action="store_true", help="go on after a failed fabrication check")
+    for name, text in STAGE_HELP.items():
+        p = sub.add_parser(name, help=text, description=text)
+        _common(p)
+        if name == "prepare":
+            _targets(p)
+        if name == "check":
+            p.add_argument("--allow-fail", action="store_true", help="write checks.json even if a check fails")
+    snap = sub.add_parser("settings", help="write resolved profiles and input hashes to OUT/settings.json "
+                                           "if they changed (Make's prerequisite for every stage)")
+    _common(snap)
+    _targets(snap)
+    summary = sub.add_parser("summary", help="one line per stage: its time and key figure")
+    _common(summary)
+    sub.add_parser("profiles", help="list the design and fabrication profiles")
+    return top
+
+
+def _per_wall(args: argparse.Namespace, with_default: bool = False) -> dict[str, str]:
+    out = {w: getattr(args, f"target_{w}") for w in WALLS if getattr(args, f"target_{w}")}
+    if with_default:
+        out["all"] = args.target
+    return out
+
+
+def run_stage(name: str, args: argparse.Namespace) -> None:
+    from . import pipeline
+
+    build = pipeline.Build.open(args.out, args.profile, args.fab)
+    if name == "prepare":
+        pipeline.prepare(build, args.target, _per_wall(args))
+    elif name == "check":
+        pipeline.check(build, args.allow_fail)
+    elif name == "settings":
+        pipeline.snapshot(build, build.path("settings.json"), _per_wall(args, with_default=True))
+    elif name == "summary":
+        pipeline.summary(build)
+    else:
+        getattr(pipeline, name)(build)
+
+
+def _profiles() -> None:
+    from .profile import PROFILE_DIR
+
+    for folder, label in ((PROFILE_DIR, "design"), (PROFILE_DIR / "fab", "fabrication")):
+        for p in sorted(folder.glob("*.toml")):
+            first = next((ln.lstrip("# ").strip() for ln in p.read_text().splitlines() if ln.startswith("#")), "")
+            print(f"{label:12s} {p.stem:14s} {first}")
+
+
+def _lamp(args: argparse.Namespace) -> None:
+    from . import pipeline
+
+    out = Path(args.out or Path("build") / Path(args.image).stem)
+    build = pipeline.Build.open(out, args.profile, args.fab)
+    for name in pipeline.STAGES:
+        t0 = time.time()
+        if name == "prepare":
+            pipeline.prepare(build, args.image, {})
+        elif name == "check":
+            pipeline.check(build, args.allow_fail)
+        else:
+            getattr(pipeline, name)(build)
+        print(f"== {name} done in {time.time() - t0:.1f} s", flush=True)
+
+
+def main(argv: list[str] | None = None, stage: str | None = None) -> int:
+    from .errors import CheckFailed, LampfabError
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if stage is not None:
+        argv = [stage, *argv]
+    args = parser().parse_args(argv)
+    try:
+        if args.command == "profiles":
+            _profiles()
+        elif args.command == "lamp":
+            _lamp(args)
+        else:
+            run_stage(args.command, args)
+    except CheckFailed as exc:
+        print(f"lampfab: {exc}", file=sys.stderr)
+        return 3
+    except LampfabError as exc:
+        print(f"lampfab: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("lampfab: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

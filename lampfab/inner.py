@@ -1,0 +1,103 @@
+"""The inner layer: a fixed closed mesh around the LED, imported from a file.
+
+Blender exports arrive as triangle soups split along UV and normal seams; they are
+welded (``tolerances.WELD_MM``), repaired where that is safe (duplicate and degenerate
+faces, winding) and refused with a reason where it is not (holes, not enclosing the
+light, crossing the outer layer).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from . import tolerances
+from .errors import LampfabError
+
+DEFAULT_INNER = Path(__file__).resolve().parent / "data" / "inner_default.obj"
+FORMATS = (".obj", ".ply", ".stl", ".glb", ".off")
+
+
+def default_inner_mesh(radius_mm: float = 18.0, z0_mm: float = 12.0, z1_mm: float = 78.0,
+                       sections: int = 1024):
+    """The bundled inner layer: a closed cylinder, 1024 facets around (mm).
+
+    1024 facets: at 256 their edges throw visible stripes on the walls (the source's
+    "dark bands"); at 1024 the gaps are ~3 mm at 1 m, below a wall pixel.
+    """
+    import trimesh
+
+    mesh = trimesh.creation.cylinder(radius=radius_mm, height=z1_mm - z0_mm, sections=sections)
+    mesh.apply_translation([0.0, 0.0, 0.5 * (z0_mm + z1_mm)])
+    return mesh
+
+
+def load_inner(path: str | Path | None, scale: float, light_mm: np.ndarray,
+               outer_radius_mm: float, max_offset_mm: float, height_mm: float):
+    """Read, weld, repair and validate the inner layer.
+
+    Returns (vertices (n, 3) float64 mm, faces (m, 3) int64), outward winding
+    (normals point away from the light, into the glass).
+    """
+    import trimesh
+
+    path = Path(path) if path else DEFAULT_INNER
+    where = f"inner layer {path}"
+    if path.suffix.lower() not in FORMATS:
+        raise LampfabError(f"{where}: unsupported format; use one of {', '.join(FORMATS)}")
+    try:
+        loaded = trimesh.load(path, force="mesh", process=False)
+    except FileNotFoundError:
+        raise LampfabError(f"{where}: file not found") from None
+    except Exception as exc:  # noqa: BLE001 - trimesh raises many types on bad files
+        raise LampfabError(f"{where}: cannot read it ({type(exc).__name__}: {exc})") from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise LampfabError(f"{where}: holds no triangles")
+    mesh = trimesh.Trimesh(loaded.vertices * scale, loaded.faces, process=False)
+    mesh.merge_vertices(digits_vertex=int(-np.log10(tolerances.WELD_MM)))
+    mesh.update_faces(mesh.unique_faces())
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.remove_unreferenced_vertices()
+    if not mesh.is_watertight:
+        raise LampfabError(f"{where}: not closed ({_open_edges(mesh)} open edges after welding "
+                           f"at {tolerances.WELD_MM} mm); close the holes in Blender")
+    if mesh.body_count != 1:
+        raise LampfabError(f"{where}: has {mesh.body_count} separate parts; expected one closed shell")
+    trimesh.repair.fix_normals(mesh)
+    if mesh.volume < 0:
+        mesh.invert()
+    if abs(winding_number(mesh.vertices, mesh.faces, light_mm) - 1.0) > 0.5:
+        raise LampfabError(f"{where}: does not enclose the light at {np.round(light_mm, 2).tolist()} mm")
+    r = np.hypot(mesh.vertices[:, 0], mesh.vertices[:, 1])
+    limit = outer_radius_mm - max_offset_mm - tolerances.MIN_GAP_MM
+    if r.max() > limit:
+        worst = mesh.vertices[np.argmax(r)]
+        raise LampfabError(f"{where}: reaches radius {r.max():.2f} mm at {np.round(worst, 2).tolist()}; "
+                           f"the outer layer may come in to {limit:.2f} mm (outer_radius_mm - max_offset_mm - gap)")
+    z = mesh.vertices[:, 2]
+    if z.min() <= 0.0 or z.max() >= height_mm:
+        raise LampfabError(f"{where}: spans z {z.min():.2f} to {z.max():.2f} mm; it must stay inside the "
+                           f"lens (0 to {height_mm} mm) so the caps close it")
+    return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
+
+
+def winding_number(vertices: np.ndarray, faces: np.ndarray, point: np.ndarray) -> float:
+    """Generalized winding number of a closed mesh around ``point`` (1 inside, 0 outside).
+
+    Van Oosterom & Strackee's solid angle per triangle; exact for closed meshes and
+    needs no spatial index.
+    """
+    a, b, c = (vertices[faces[:, k]] - point for k in range(3))
+    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+    det = np.einsum("ij,ij->i", a, np.cross(b, c))
+    den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la \
+        + np.einsum("ij,ij->i", c, a) * lb
+    return float(np.sum(2 * np.arctan2(det, den)) / (4 * np.pi))
+
+
+def _open_edges(mesh) -> int:
+    import trimesh
+
+    groups = trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)
+    return len(groups)

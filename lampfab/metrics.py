@@ -1,0 +1,99 @@
+"""How much a render looks like its target.
+
+Both images are divided by their own mean before comparing, so the figures measure
+the *pattern* of light, not its brightness: a render with 3x the flux scores the same.
+(The amount of light reaching the wall is a separate figure, ``share``.)
+
+* ``pearson``: Pearson correlation coefficient r in [-1, 1] of the two images.
+* ``ssim``: structural similarity (Wang et al. 2004: Gaussian window sigma 1.5,
+  population covariances, K1 = 0.01, K2 = 0.03) from scikit-image.  After mean
+  normalization the values have mean 1 but no fixed maximum (a silhouette covering
+  a quarter of the wall peaks at 4), so ``data_range`` is the range (max - min) of the
+  normalized *target*: the same as scaling both images so the target spans [0, 1]
+  and the render carries the same total flux, i.e. SSIM on the target's own scale.
+  That keeps the stabilising constants C1, C2 proportional to the target's contrast
+  for sparse and dense images alike.
+
+Degenerate inputs give 0.0, never NaN: a render (or target) without light or without
+any variation has no resemblance to measure.  Shape mismatches and non-finite values
+are programming errors and raise ValueError.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# Wang et al.'s Gaussian window needs 11x11 pixels (truncate 3.5 sigma at sigma 1.5).
+_GAUSS_MIN = 11
+
+
+def _pair(render, target) -> tuple[np.ndarray, np.ndarray]:
+    r = np.asarray(render, dtype=np.float64)
+    t = np.asarray(target, dtype=np.float64)
+    if r.shape != t.shape or r.ndim != 2:
+        raise ValueError(f"render and target must be 2-D images of the same shape, "
+                         f"got {r.shape} and {t.shape}")
+    if not (np.isfinite(r).all() and np.isfinite(t).all()):
+        raise ValueError("render or target contains NaN or infinite values")
+    return r, t
+
+
+def _normalized(img: np.ndarray) -> np.ndarray | None:
+    """``img`` divided by its mean, or None when it has no (positive) light."""
+    mean = float(img.mean())
+    if not mean > 0.0:
+        return None
+    return img / mean
+
+
+def pearson(render, target) -> float:
+    """Pearson r of the mean-normalized images; 0.0 if either is constant or dark."""
+    r, t = _pair(render, target)
+    rn, tn = _normalized(r), _normalized(t)
+    if rn is None or tn is None:
+        return 0.0
+    rc, tc = rn - rn.mean(), tn - tn.mean()
+    denom = float(np.sqrt((rc * rc).sum() * (tc * tc).sum()))
+    if not denom > 1e-12 * rc.size:
+        return 0.0
+    return float(np.clip((rc * tc).sum() / denom, -1.0, 1.0))
+
+
+def ssim(render, target) -> float:
+    """SSIM of the mean-normalized images (see module docstring for data_range)."""
+    from skimage.metrics import structural_similarity
+
+    r, t = _pair(render, target)
+    rn, tn = _normalized(r), _normalized(t)
+    if rn is None or tn is None:
+        return 0.0
+    data_range = float(tn.max() - tn.min())
+    if not data_range > 0.0:
+        data_range = 1.0  # constant target: its normalized value is 1 everywhere
+    small = min(r.shape)
+    if small >= _GAUSS_MIN:
+        kw = dict(gaussian_weights=True, sigma=1.5, use_sample_covariance=False)
+    elif small >= 3:
+        # Too small for Wang's window: the largest odd uniform window that fits.
+        kw = dict(win_size=small if small % 2 else small - 1, use_sample_covariance=False)
+    else:
+        raise ValueError(f"images of shape {r.shape} are too small for SSIM (need 3x3)")
+    value = structural_similarity(rn, tn, data_range=data_range, **kw)
+    return float(value) if np.isfinite(value) else 0.0
+
+
+def share(flux_on_wall, flux_emitted) -> float:
+    """Fraction of the emitted flux that lands on the wall.
+
+    ``flux_on_wall`` may be a number or an image of per-pixel flux (it is summed).
+    """
+    on_wall = float(np.sum(flux_on_wall))
+    emitted = float(flux_emitted)
+    if not emitted > 0.0:
+        raise ValueError(f"emitted flux must be positive, got {emitted}")
+    return on_wall / emitted
+
+
+def compare(render, target) -> dict:
+    """{"pearson": r, "ssim": s} of a render against its target."""
+    return {"pearson": pearson(render, target), "ssim": ssim(render, target)}

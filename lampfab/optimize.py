@@ -1,0 +1,215 @@
+"""The source's method (``seed``): Mitsuba ``ptracer`` + Dr.Jit gradients of the outer
+vertices, a per-view loss, one view per step (cyclic) or all (joint), plain gradient
+descent or Adam, coarse-to-fine x4.
+
+The optimized variables are the heightmap nodes; the traced mesh is the spline
+surface tessellated ``tessellation`` times finer with flat facets, i.e. the surface
+that is exported.  Vertex gradients are pulled back to the nodes through the
+(linear) spline sampling.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import lens, losses, scene, surface
+from .profile import Optimize
+from .room import Wall
+
+# Losses above this multiple of the best loss so far count as an explosion: the
+# step is undone and the learning rate halved (the source's GD diverges this way).
+EXPLODE_FACTOR = 20.0
+
+
+@dataclass
+class State:
+    """Everything needed to resume: the heightmap, the step rule's moments, the log."""
+    heights: np.ndarray
+    level: int
+    step: int
+    lr_scale: float = 1.0
+    m: np.ndarray | None = None
+    v: np.ndarray | None = None
+    adam_t: int = 0
+    log: list = field(default_factory=list)  # rows: (step, level, view, loss, seconds)
+
+    def to_arrays(self) -> dict:
+        nu, nv = self.heights.shape
+        zeros = np.zeros((nu, nv))
+        return {"heights": self.heights, "level": self.level, "step": self.step,
+                "lr_scale": self.lr_scale, "m": zeros if self.m is None else self.m,
+                "v": zeros if self.v is None else self.v, "adam_t": self.adam_t,
+                "log": np.asarray(self.log, np.float64).reshape(-1, 5)}
+
+    @staticmethod
+    def from_arrays(a: dict) -> "State":
+        return State(heights=a["heights"], level=int(a["level"]), step=int(a["step"]),
+                     lr_scale=float(a["lr_scale"]), m=a["m"], v=a["v"], adam_t=int(a["adam_t"]),
+                     log=[tuple(r) for r in a["log"]])
+
+
+def level_grids(opt: Optimize) -> list[tuple[int, int]]:
+    """Node grids from coarse to fine, x4 in u and v between levels."""
+    grids = []
+    for k in range(opt.levels):
+        f = 4 ** (opt.levels - 1 - k)
+        grids.append((opt.grid_u // f, (opt.grid_v - 1) // f + 1))
+    return grids
+
+
+def level_steps(opt: Optimize, first_level: int) -> list[int]:
+    """Steps per level: split evenly over the levels actually run."""
+    runs = opt.levels - first_level
+    base = [opt.iterations // runs] * runs
+    base[-1] += opt.iterations - sum(base)
+    return [0] * first_level + base
+
+
+class Interrupted(Exception):
+    """SIGINT/SIGTERM arrived; the state was checkpointed."""
+
+
+class SeedOptimizer:
+    def __init__(self, cyl: surface.Cylinder, inner_vertices: np.ndarray, inner_faces: np.ndarray,
+                 light_mm: np.ndarray, ior: float, walls: list[Wall], targets: list[np.ndarray],
+                 opt: Optimize, max_offset_mm: float):
+        self.cyl, self.inner_v, self.inner_f = cyl, inner_vertices, inner_faces
+        self.light, self.ior, self.walls, self.opt = light_mm, ior, walls, opt
+        self.targets = [np.asarray(t, np.float64) for t in targets]
+        self.shapes = [t.shape for t in self.targets]
+        self.max_offset = max_offset_mm
+        self._scene_grid = None
+
+    # -- scene --------------------------------------------------------------------
+    def _mesh(self, heights):
+        return lens.optical_mesh(self.cyl, heights, self.opt.tessellation, self.inner_v, self.inner_f)
+
+    def _ensure_scene(self, heights: np.ndarray) -> None:
+        if self._scene_grid == heights.shape:
+            return
+        verts, faces = self._mesh(heights)
+        self.scene, self.params, self.key = scene.build(verts, faces, self.light, self.ior, self.walls,
+                                                        self.shapes, self.opt.spp)
+        self.static = verts  # inner layer and cap centres never move
+        self.fine = surface.fine_shape(*heights.shape, self.opt.tessellation)
+        self.radial = surface.radial_dirs(*self.fine)
+        self._scene_grid = heights.shape
+
+    def _set_heights(self, heights: np.ndarray) -> None:
+        mi = scene.mitsuba()
+        verts, _ = self._mesh(heights)
+        self.params[self.key] = mi.Float(verts.astype(np.float32).ravel())
+        self.params.update()
+
+    def render(self, heights: np.ndarray, view: int, seed: int, spp: int | None = None) -> np.ndarray:
+        """A (rows, cols) float64 ptracer image of one wall, no gradient."""
+        mi = scene.mitsuba()
+        self._ensure_scene(heights)
+        self._set_heights(heights)
+        img = mi.render(self.scene, self.params, sensor=view, spp=spp or self.opt.spp, seed=seed)
+        return np.array(img, dtype=np.float64)[..., 0]
+
+    def gradient(self, heights: np.ndarray, views: list[int], seed: int) -> tuple[float, np.ndarray]:
+        """Loss over ``views`` and its gradient on the heightmap nodes (nu, nv)."""
+        import drjit as dr
+
+        mi = scene.mitsuba()
+        self._ensure_scene(heights)
+        self._set_heights(heights)
+        positions = self.params[self.key]
+        dr.enable_grad(positions)
+        self.params.update()
+        total = 0.0
+        grad_vertices = np.zeros(dr.width(positions))
+        weights = self.opt.loss_weights or (1.0,) * len(self.walls)
+        for view in views:
+            img = mi.render(self.scene, self.params, sensor=view, spp=self.opt.spp, seed=seed + view,
+                            seed_grad=seed + view + 7919)
+            target = mi.TensorXf(self.targets[view][..., None].astype(np.float32))
+            loss = losses.view_loss(self.opt.loss, img, target, dr.mean, weights[view])
+            dr.backward(loss)
+            total += float(np.asarray(loss).ravel()[0])
+            grad_vertices += dr.grad(positions).numpy()
+            dr.clear_grad(positions)
+        dr.disable_grad(positions)
+        mu, mv = self.fine
+        g = grad_vertices.reshape(-1, 3)[: mu * mv]
+        g_fine = np.einsum("ij,ij->i", g, self.radial).reshape(mu, mv)
+        return total, surface.sample_adjoint(g_fine, *heights.shape)
+
+    # -- loop ---------------------------------------------------------------------
+    def step_update(self, state: State, grad: np.ndarray) -> np.ndarray:
+        lr = self.opt.learning_rate * state.lr_scale
+        if self.opt.step == "gd":
+            return state.heights - lr * grad
+        b1, b2, eps = 0.9, 0.999, 1e-12
+        state.adam_t += 1
+        state.m = b1 * state.m + (1 - b1) * grad
+        state.v = b2 * state.v + (1 - b2) * grad**2
+        m_hat = state.m / (1 - b1**state.adam_t)
+        v_hat = state.v / (1 - b2**state.adam_t)
+        return state.heights - lr * m_hat / (np.sqrt(v_hat) + eps)
+
+    def run(self, state: State, first_level: int, on_checkpoint, on_preview, progress) -> State:
+        """Optimize from ``state`` to the end, calling ``on_checkpoint(state)`` every
+        ``checkpoint_every`` steps and on SIGINT/SIGTERM (then raising Interrupted)."""
+        opt = self.opt
+        grids = level_grids(opt)
+        steps = level_steps(opt, first_level)
+        stop = {"signal": None}
+
+        def handler(signum, _frame):
+            stop["signal"] = signum
+
+        old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            for level in range(state.level, opt.levels):
+                if state.heights.shape != grids[level]:
+                    state.heights = surface.refine(state.heights, 4)
+                    state.m = state.v = None
+                    state.adam_t = 0
+                if state.m is None or state.m.shape != state.heights.shape:
+                    state.m = np.zeros_like(state.heights)
+                    state.v = np.zeros_like(state.heights)
+                state.level = level
+                end = sum(steps[: level + 1])
+                best = {}
+                for row in state.log:
+                    if row[1] == level:
+                        best[row[2]] = min(best.get(row[2], math.inf), row[3])
+                while state.step < end:
+                    t0 = time.time()
+                    views = losses.views_for_step(opt.schedule, state.step, len(self.walls))
+                    loss, grad = self.gradient(state.heights, views, seed=opt.seed * 100_003 + state.step * 17)
+                    if not (np.isfinite(loss) and np.all(np.isfinite(grad))):
+                        state.lr_scale *= 0.5
+                        progress(state, loss, "non-finite loss or gradient: step skipped, learning rate halved")
+                        state.step += 1
+                        continue
+                    key = views[0] if len(views) == 1 else -1
+                    if loss > EXPLODE_FACTOR * best.get(key, math.inf):
+                        state.lr_scale *= 0.5
+                        progress(state, loss, "loss exploded: step undone, learning rate halved")
+                        state.step += 1
+                        continue
+                    best[key] = min(best.get(key, math.inf), loss)
+                    state.heights = np.clip(self.step_update(state, grad), -self.max_offset, self.max_offset)
+                    state.log.append((state.step, level, key, loss, time.time() - t0))
+                    state.step += 1
+                    progress(state, loss, "")
+                    if state.step % opt.preview_every == 0 or state.step == sum(steps):
+                        on_preview(state)
+                    if state.step % opt.checkpoint_every == 0:
+                        on_checkpoint(state)
+                    if stop["signal"] is not None:
+                        on_checkpoint(state)
+                        raise Interrupted(stop["signal"])
+        finally:
+            for s, h in old.items():
+                signal.signal(s, h)
+        return state

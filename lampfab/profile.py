@@ -1,0 +1,238 @@
+"""Profiles: TOML files loaded strictly into frozen dataclasses.
+
+A design profile (``profiles/NAME.toml``) sets the lens, the room and the optimizer; a
+fabrication profile (``profiles/fab/NAME.toml``) sets the material and the machine's
+limits.  An unknown key, a wrong type or a value out of range is a LampfabError that
+names the file, the key and what is allowed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import LampfabError
+
+PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
+WALL_NAMES = ("front", "left", "right", "floor")
+
+
+def _spec(default, lo=None, hi=None, choices=None, doc=""):
+    return field(default=default, metadata={"lo": lo, "hi": hi, "choices": choices, "doc": doc})
+
+
+@dataclass(frozen=True)
+class Lens:
+    outer_radius_mm: float = _spec(45.0, 10.0, 300.0, doc="radius of the plain outer cylinder")
+    height_mm: float = _spec(90.0, 10.0, 600.0, doc="height of the lens solid, base on z = 0")
+    light_height_mm: float = _spec(45.0, 1.0, 599.0, doc="LED centre above the base")
+    inner_mesh: str = _spec("", doc="inner layer file (OBJ/PLY/STL); empty: bundled default")
+    inner_scale: float = _spec(1.0, 1e-4, 1e4, doc="scale applied to the inner mesh (Blender metres -> 1000)")
+    max_offset_mm: float = _spec(20.0, 0.1, 100.0, doc="bound on the radial heightmap, both ways")
+
+
+@dataclass(frozen=True)
+class Room:
+    walls: tuple = _spec(("front", "left", "right"), choices=WALL_NAMES, doc="projection surfaces")
+    wall_distance_mm: float = _spec(1000.0, 100.0, 20000.0, doc="light to front/left/right walls")
+    target_width_mm: float = _spec(1800.0, 10.0, 20000.0, doc="width of the image on each wall")
+    target_height_mm: float = _spec(1350.0, 10.0, 20000.0, doc="height of the image on each wall")
+    target_center_z_mm: float = _spec(0.0, -5000.0, 5000.0, doc="image centre height relative to the light")
+    floor_depth_mm: float = _spec(800.0, 50.0, 10000.0, doc="light height above the floor")
+    floor_center_mm: float = _spec(1200.0, 0.0, 20000.0, doc="floor image centre, behind the lamp")
+
+
+@dataclass(frozen=True)
+class Optimize:
+    init: str = _spec("transport", choices=("transport", "cylinder"), doc="first design")
+    method: str = _spec("seed", choices=("seed",), doc="differentiable refinement (source's ptracer)")
+    grid_u: int = _spec(256, 8, 8192, doc="heightmap nodes around (final level)")
+    grid_v: int = _spec(64, 4, 4096, doc="heightmap nodes up (final level)")
+    levels: int = _spec(2, 1, 4, doc="coarse-to-fine levels, x4 in u and v between levels")
+    iterations: int = _spec(0, 0, 1_000_000, doc="gradient steps in all, split over levels")
+    loss: str = _spec("si_mse", choices=("si_mse", "l1_joint", "l1_weighted"), doc="per-view loss")
+    loss_weights: tuple = _spec((), doc="weights for l1_weighted, one per wall")
+    schedule: str = _spec("cyclic", choices=("cyclic", "joint"), doc="one view per step or all")
+    step: str = _spec("adam", choices=("adam", "gd"), doc="update rule")
+    learning_rate: float = _spec(0.02, 1e-8, 100.0, doc="mm per step scale")
+    sensor_px: int = _spec(64, 8, 2048, doc="sensor width in pixels (height from the aspect)")
+    spp: int = _spec(16, 1, 65536, doc="ptracer samples per pixel per step")
+    tessellation: int = _spec(4, 1, 16, doc="mesh vertices per heightmap cell edge (the STL uses the same)")
+    transport_rounds: int = _spec(4, 1, 20, doc="position/normal rounds of the transport init")
+    transport_photons: int = _spec(2_000_000, 10_000, 100_000_000, doc="photons for the source density")
+    smoothness: float = _spec(1e-3, 0.0, 10.0, doc="curvature penalty in the normal integration")
+    preview_every: int = _spec(50, 1, 1_000_000, doc="preview images every N steps")
+    checkpoint_every: int = _spec(20, 1, 1_000_000, doc="checkpoint every N steps")
+    seed: int = _spec(0, 0, 2**31 - 1, doc="random seed")
+
+
+@dataclass(frozen=True)
+class Verify:
+    image_px: int = _spec(64, 8, 4096, doc="verify image width in pixels")
+    photons: int = _spec(4_000_000, 10_000, 2_000_000_000, doc="photons per verify render")
+    max_bounces: int = _spec(8, 2, 64, doc="interface crossings followed per photon")
+
+
+@dataclass(frozen=True)
+class Export:
+    step_samples_u: int = _spec(256, 16, 4096, doc="B-spline interpolation samples around")
+    step_samples_v: int = _spec(64, 4, 4096, doc="B-spline interpolation samples up")
+
+
+@dataclass(frozen=True)
+class Design:
+    """A design profile: what to make and how hard to try."""
+    name: str
+    lens: Lens
+    room: Room
+    optimize: Optimize
+    verify: Verify
+    export: Export
+    path: str = ""
+
+
+@dataclass(frozen=True)
+class Fabrication:
+    """A fabrication profile: the material and the machine's limits (sourced numbers)."""
+    name: str = _spec("", doc="profile name")
+    process: str = _spec("sla", choices=("sla", "cnc3", "cnc4", "glass"), doc="how it is made")
+    material: str = _spec("", doc="material name")
+    ior: float = _spec(1.49, 1.0, 3.0, doc="refractive index at ~589 nm")
+    min_wall_mm: float = _spec(1.5, 0.1, 50.0, doc="thinnest wall between inner and outer surface")
+    max_slope_deg: float = _spec(60.0, 1.0, 90.0, doc="steepest outer slope against the radial direction")
+    tool_radius_mm: float = _spec(0.0, 0.0, 50.0, doc="ball-end radius (0: not milled)")
+    build_x_mm: float = _spec(145.0, 1.0, 5000.0, doc="build volume x")
+    build_y_mm: float = _spec(145.0, 1.0, 5000.0, doc="build volume y")
+    build_z_mm: float = _spec(185.0, 1.0, 5000.0, doc="build volume z")
+    mount_radius_mm: float = _spec(6.0, 0.5, 100.0, doc="LED bore radius through the base")
+    led_radius_mm: float = _spec(2.5, 0.0, 50.0, doc="emitting radius of the LED (blur in verify)")
+    surface_error_mm: float = _spec(0.01, 0.0, 5.0, doc="surface error after finishing")
+    path: str = ""
+
+
+SECTIONS = {"lens": Lens, "room": Room, "optimize": Optimize, "verify": Verify, "export": Export}
+
+
+def _check_value(cls, f: dataclasses.Field, value: Any, where: str) -> Any:
+    default = f.default
+    meta = f.metadata
+    if isinstance(default, bool):
+        ok = isinstance(value, bool)
+        allowed = "true or false"
+    elif isinstance(default, int):
+        ok = isinstance(value, int) and not isinstance(value, bool)
+        allowed = "an integer"
+    elif isinstance(default, float):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        value = float(value) if ok else value
+        allowed = "a number"
+    elif isinstance(default, tuple):
+        ok = isinstance(value, list)
+        value = tuple(value) if ok else value
+        allowed = "a list"
+    else:
+        ok = isinstance(value, str)
+        allowed = "a string"
+    if not ok:
+        raise LampfabError(f"{where}: expected {allowed}, got {value!r}")
+    lo, hi, choices = meta.get("lo"), meta.get("hi"), meta.get("choices")
+    if lo is not None and not (lo <= value <= hi):
+        raise LampfabError(f"{where}: {value!r} is out of range; allowed {lo} to {hi}")
+    if choices is not None:
+        items = value if isinstance(value, tuple) else (value,)
+        bad = [v for v in items if v not in choices]
+        if bad:
+            raise LampfabError(f"{where}: {bad[0]!r} is not allowed; choose from {', '.join(choices)}")
+    return value
+
+
+def _build(cls, table: dict, path: Path, section: str):
+    known = {f.name: f for f in dataclasses.fields(cls) if f.name != "path"}
+    values = {}
+    for key, value in table.items():
+        where = f"{path}: [{section}] {key}" if section else f"{path}: {key}"
+        if key not in known:
+            raise LampfabError(f"{where}: unknown key; allowed: {', '.join(sorted(known))}")
+        values[key] = _check_value(cls, known[key], value, where)
+    return cls(**values)
+
+
+def _read_toml(path: Path) -> dict:
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise LampfabError(f"{path}: profile not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise LampfabError(f"{path}: not valid TOML ({exc})") from None
+
+
+def resolve(name_or_path: str, folder: Path) -> Path:
+    """A profile given by name (``draft``) or path (``my.toml``)."""
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists():
+        return p
+    candidate = folder / f"{name_or_path}.toml"
+    if not candidate.exists():
+        names = sorted(q.stem for q in folder.glob("*.toml"))
+        raise LampfabError(f"profile {name_or_path!r} not found in {folder}; available: {', '.join(names)}")
+    return candidate
+
+
+def load_design(name_or_path: str) -> Design:
+    path = resolve(name_or_path, PROFILE_DIR)
+    data = _read_toml(path)
+    unknown = set(data) - set(SECTIONS)
+    if unknown:
+        raise LampfabError(f"{path}: unknown section [{sorted(unknown)[0]}]; allowed: {', '.join(SECTIONS)}")
+    parts = {}
+    for section, cls in SECTIONS.items():
+        table = data.get(section, {})
+        if not isinstance(table, dict):
+            raise LampfabError(f"{path}: [{section}] must be a table")
+        parts[section] = _build(cls, table, path, section)
+    design = Design(name=path.stem, path=str(path), **parts)
+    _check_design(design, path)
+    return design
+
+
+def load_fabrication(name_or_path: str) -> Fabrication:
+    path = resolve(name_or_path, PROFILE_DIR / "fab")
+    data = _read_toml(path)
+    fab = _build(Fabrication, data, path, "")
+    if not fab.name:
+        fab = dataclasses.replace(fab, name=path.stem)
+    return dataclasses.replace(fab, path=str(path))
+
+
+def _check_design(d: Design, path: Path) -> None:
+    """Relations between keys that single ranges cannot express."""
+    lens, room, opt = d.lens, d.room, d.optimize
+    if not 0 < lens.light_height_mm < lens.height_mm:
+        raise LampfabError(f"{path}: [lens] light_height_mm {lens.light_height_mm} must lie inside the lens "
+                           f"(0 to height_mm {lens.height_mm})")
+    if lens.max_offset_mm >= lens.outer_radius_mm:
+        raise LampfabError(f"{path}: [lens] max_offset_mm must be below outer_radius_mm")
+    if room.wall_distance_mm <= 2 * lens.outer_radius_mm:
+        raise LampfabError(f"{path}: [room] wall_distance_mm must exceed the lens diameter (walls behind or inside the lamp)")
+    if not room.walls:
+        raise LampfabError(f"{path}: [room] walls must name at least one of {', '.join(WALL_NAMES)}")
+    if len(set(room.walls)) != len(room.walls):
+        raise LampfabError(f"{path}: [room] walls lists a wall twice")
+    if "floor" in room.walls and room.floor_depth_mm <= lens.light_height_mm:
+        raise LampfabError(f"{path}: [room] floor_depth_mm must exceed light_height_mm (the floor is below the lamp)")
+    if opt.loss == "l1_weighted" and len(opt.loss_weights) != len(room.walls):
+        raise LampfabError(f"{path}: [optimize] loss_weights needs one weight per wall ({len(room.walls)})")
+    coarse = 4 ** (opt.levels - 1)
+    if opt.grid_u % coarse:
+        raise LampfabError(f"{path}: [optimize] grid_u must be divisible by 4^(levels-1) = {coarse}")
+    if opt.grid_u // coarse < 8 or opt.grid_v // coarse < 4:
+        raise LampfabError(f"{path}: [optimize] the coarsest level would be below 8 x 4 nodes; lower levels")
+
+
+def as_dict(obj) -> dict:
+    """A profile as plain JSON-able data (for reports)."""
+    return dataclasses.asdict(obj)

@@ -1,0 +1,517 @@
+"""The lens as a STEP solid: one smooth B-spline outer face, planar caps, a faceted cavity.
+
+The outer surface is ONE periodic-in-u, degree-3 ``Geom_BSplineSurface`` that
+interpolates the heightmap surface (``surface.py``) at ``samples_u x samples_v``
+points.  Its poles are computed here: an interpolating not-a-knot cubic spline in v
+(parameter v = z in mm; with ``samples_v == nv`` this reproduces surface.py's z spline
+exactly), then a circulant solve for the periodic uniform cubic in u (parameter u =
+angle in rad).  OCCT's ``GeomAPI_PointsToBSplineSurface`` is not used: its periodic
+interpolation is wrong between samples near the seam (shared fabrication facts).
+
+The solid is assembled from faces that share their edges, with no OCCT boolean and no
+sewing: the outer face, the top cap and the bottom cap (bounded by the outer face's own
+boundary edges; the bottom cap has the bore's circular opening), the bore as an analytic
+cylinder from z = 0 up to the inner layer's flat floor, and the inner layer's triangles
+merged into planar polygon faces (the floor gets the bore's circle as a hole).
+Units: mm (the STEP file says so).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import surface
+from .artifacts import atomic_path
+from .errors import GeometryError, LampfabError
+from .solid import BORE_LEDGE_MM, plan_bore
+
+# Tolerance of the face/edge geometry handed to OCCT (its Precision::Confusion).
+OCC_TOLERANCE_MM = 1e-7
+
+# Relative accuracy asked of OCCT's adaptive volume integration.  Its default (fixed
+# Gauss points) was 1.3 % off on a rough 256 x 64 lens; 1e-5 lands within ~1e-5 of the
+# converged value in 0.2 s, 1e-6 takes 7x longer for a digit the 0.5 % check never needs.
+VOLUME_EPS = 1e-5
+
+# A facet's vertices must lie this close to its plane to become one planar face (a
+# tenth of the edge tolerance, so its straight edges lie on the plane); otherwise its
+# triangles become faces of their own.  Axis-aligned faces are exact; tilted quads from
+# a float32 file usually fall back to their two triangles.
+PLANAR_MM = 0.1 * OCC_TOLERANCE_MM
+
+
+# ---------------------------------------------------------------- the B-spline fit
+
+def bspline_poles(cyl: surface.Cylinder, heights: np.ndarray, samples_u: int,
+                  samples_v: int) -> dict:
+    """Poles and knots of the degree-3 B-spline through the surface samples (pure numpy).
+
+    Samples: ``surface.points(cyl, surface.sample(heights, samples_u, samples_v))``,
+    (samples_u, samples_v, 3) mm at u = 2*pi*k/samples_u, z = H*j/(samples_v - 1).
+    Returns dict(poles (samples_u, samples_v, 3) float64 mm, u_knots (samples_u + 1,)
+    rad with multiplicity 1 (periodic), v_knots (k,) mm and v_mults (k,) int (clamped),
+    samples (samples_u, samples_v, 3) mm).
+    """
+    from scipy.interpolate import make_interp_spline
+
+    mu, mv = int(samples_u), int(samples_v)
+    if mu < 8 or mv < 4:
+        raise LampfabError(f"STEP samples {mu} x {mv}: need at least 8 around and 4 up")
+    pts = surface.points(cyl, surface.sample(heights, mu, mv))
+    z = cyl.node_z(mv)
+    # v: not-a-knot cubic through the rows; its coefficients are clamped B-spline poles.
+    spl = make_interp_spline(z, pts.transpose(1, 0, 2).reshape(mv, -1), k=3)
+    rows = spl.c.reshape(mv, mu, 3).transpose(1, 0, 2)
+    v_knots, v_mults = np.unique(spl.t, return_counts=True)
+    # u: uniform periodic cubic.  OCCT's periodic basis gives the value at knot k as
+    # (P[k] + 4 P[k+1] + P[k+2]) / 6: a circulant system, solved with the FFT.
+    eig = (4.0 + 2.0 * np.cos(2 * np.pi * np.arange(mu) / mu)) / 6.0
+    shifted = np.fft.ifft(np.fft.fft(rows, axis=0) / eig[:, None, None], axis=0).real
+    poles = np.roll(shifted, 1, axis=0)
+    return {"poles": poles, "u_knots": np.arange(mu + 1) * (2 * np.pi / mu),
+            "v_knots": v_knots, "v_mults": v_mults.astype(np.int64), "samples": pts}
+
+
+def _occ_surface(fit: dict):
+    from OCP.Geom import Geom_BSplineSurface
+    from OCP.gp import gp_Pnt
+    from OCP.TColgp import TColgp_Array2OfPnt
+    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+
+    poles = fit["poles"]
+    mu, mv, _ = poles.shape
+    arr = TColgp_Array2OfPnt(1, mu, 1, mv)
+    for i in range(mu):
+        for j in range(mv):
+            x, y, z = poles[i, j]
+            arr.SetValue(i + 1, j + 1, gp_Pnt(float(x), float(y), float(z)))
+
+    def reals(values):
+        out = TColStd_Array1OfReal(1, len(values))
+        for k, x in enumerate(values):
+            out.SetValue(k + 1, float(x))
+        return out
+
+    def ints(values):
+        out = TColStd_Array1OfInteger(1, len(values))
+        for k, x in enumerate(values):
+            out.SetValue(k + 1, int(x))
+        return out
+
+    u_knots = fit["u_knots"]
+    return Geom_BSplineSurface(arr, reals(u_knots), reals(fit["v_knots"]), ints(np.ones(len(u_knots))),
+                               ints(fit["v_mults"]), 3, 3, True, False)
+
+
+def spline_at(cyl: surface.Cylinder, heights: np.ndarray, u: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """surface.py's spline s(u, z) at arbitrary points: (N,) rad, (N,) mm -> (N,) mm.
+
+    The same spline as ``surface.sample`` (the unique C2 periodic cubic through the
+    uniform u nodes, the not-a-knot cubic through the z nodes), evaluated pointwise.  In
+    u it is built from uniform cubic B-spline coefficients by an FFT solve: scipy's
+    periodic ``make_interp_spline`` takes ~4 ms per column.
+    """
+    from scipy.interpolate import make_interp_spline
+
+    h = np.asarray(heights, np.float64)
+    nu, nv = h.shape
+    eig = (4.0 + 2.0 * np.cos(2 * np.pi * np.arange(nu) / nu)) / 6.0
+    coef = np.fft.ifft(np.fft.fft(h, axis=0) / eig[:, None], axis=0).real
+    in_z = make_interp_spline(np.linspace(0.0, 1.0, nv), np.eye(nv), k=3 if nv >= 4 else nv - 1)
+    t = np.mod(np.asarray(u, np.float64), 2 * np.pi) * (nu / (2 * np.pi))
+    base = np.floor(t).astype(np.int64)
+    f = (t - base)[:, None]
+    weights = ((1 - f) ** 3 / 6, (3 * f ** 3 - 6 * f ** 2 + 4) / 6, (-3 * f ** 3 + 3 * f ** 2 + 3 * f + 1) / 6,
+               f ** 3 / 6)
+    zt = np.asarray(z, np.float64) / cyl.height_mm
+    out = np.empty(len(t))
+    for start in range(0, len(t), 65536):
+        sl = slice(start, start + 65536)
+        in_u = sum(w[sl] * coef[(base[sl] + k - 1) % nu] for k, w in enumerate(weights))
+        out[sl] = np.einsum("ij,ij->i", in_u, in_z(zt[sl]))
+    return out
+
+
+def deviation(cyl: surface.Cylinder, heights: np.ndarray, occ_surface, samples_u: int,
+              samples_v: int) -> dict:
+    """How far the B-spline is from the heightmap surface, at and between the samples (mm).
+
+    Evaluates the OCCT surface on the doubled grid (u at samples and midpoints, v
+    likewise).  ``interpolation_mm``: largest distance to the sample points;
+    ``radial_mm``: largest |radius of the B-spline point - (R + s(angle, z))| at the
+    points between samples (s evaluated at the B-spline point's own angle and z: the
+    surface's radial error, an upper bound on the distance to the surface);
+    ``parametric_mm``: largest |B(u, v) - X(u, v)| there (also an upper bound).
+    """
+    from OCP.gp import gp_Pnt
+
+    mu, mv = int(samples_u), int(samples_v)
+    u = np.arange(2 * mu) * (np.pi / mu)
+    z = np.linspace(0.0, cyl.height_mm, 2 * mv - 1)
+    out = np.empty((len(u), len(z), 3))
+    p = gp_Pnt()
+    for i, ui in enumerate(u):
+        row = out[i]
+        for j, zj in enumerate(z):
+            occ_surface.D0(float(ui), float(zj), p)
+            row[j] = (p.X(), p.Y(), p.Z())
+    uu, zz = np.meshgrid(u, z, indexing="ij")
+    r_true = cyl.radius_mm + spline_at(cyl, heights, uu.ravel(), zz.ravel()).reshape(uu.shape)
+    true = np.stack([r_true * np.cos(uu), r_true * np.sin(uu), zz], axis=-1)
+    at_sample = np.zeros(out.shape[:2], bool)
+    at_sample[::2, ::2] = True
+    err = np.linalg.norm(out - true, axis=-1)
+    between = out[~at_sample]
+    phi = np.arctan2(between[:, 1], between[:, 0])
+    radial = np.hypot(between[:, 0], between[:, 1]) - (cyl.radius_mm + spline_at(cyl, heights, phi, between[:, 2]))
+    k = int(np.argmax(np.abs(radial)))
+    return {"interpolation_mm": float(err[at_sample].max()), "radial_mm": float(np.abs(radial).max()),
+            "radial_at_mm": np.round(between[k], 3).tolist(), "parametric_mm": float(err[~at_sample].max())}
+
+
+# ---------------------------------------------------------------- topology helpers
+
+def _edges_of(face) -> list:
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    out = []
+    ex = TopExp_Explorer(face, TopAbs_EDGE)
+    while ex.More():
+        out.append(TopoDS.Edge_s(ex.Current()))
+        ex.Next()
+    return out
+
+
+def _boundary_edge(face, z_mm: float):
+    """The non-seam edge of a periodic face lying at height ``z_mm``, oriented as the face uses it."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepAdaptor import BRepAdaptor_Curve
+
+    for e in _edges_of(face):
+        if BRep_Tool.IsClosed_s(e, face):
+            continue
+        c = BRepAdaptor_Curve(e)
+        if abs(c.Value(0.5 * (c.FirstParameter() + c.LastParameter())).Z() - z_mm) < 1e-6:
+            return e
+    raise GeometryError(f"STEP: no boundary edge at z = {z_mm} mm on a periodic face")
+
+
+def _wire(edges):
+    from OCP.BRep import BRep_Builder
+    from OCP.TopoDS import TopoDS_Wire
+
+    builder = BRep_Builder()
+    wire = TopoDS_Wire()
+    builder.MakeWire(wire)
+    for e in edges:
+        builder.Add(wire, e)
+    wire.Closed(True)
+    return wire
+
+
+def _planar_face(origin, normal, outer, holes=()):
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
+    from OCP.gp import gp_Dir, gp_Pln, gp_Pnt
+
+    plane = gp_Pln(gp_Pnt(*map(float, origin)), gp_Dir(*map(float, normal)))
+    mf = BRepBuilderAPI_MakeFace(plane, outer, True)
+    for h in holes:
+        mf.Add(h)
+    if not mf.IsDone():
+        raise GeometryError(f"STEP: planar face at {np.round(origin, 3).tolist()} failed ({mf.Error()})")
+    return mf.Face()
+
+
+def _facet_groups(vertices: np.ndarray, faces: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Split a closed mesh into planar regions: [(face indices, unit normal (3,))].
+
+    Coplanar adjacent triangles (trimesh facets) form one region when all their
+    vertices lie within PLANAR_MM of the plane; every other triangle is its own region.
+    """
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    normals = np.asarray(mesh.face_normals)
+    groups, used = [], np.zeros(len(faces), bool)
+    for facet in mesh.facets:
+        n = normals[facet].mean(axis=0)
+        n /= np.linalg.norm(n)
+        idx = np.unique(faces[facet])
+        d = (vertices[idx] - vertices[idx[0]]) @ n
+        if np.ptp(d) <= PLANAR_MM:
+            groups.append((np.asarray(facet), n))
+            used[facet] = True
+    for k in np.flatnonzero(~used):
+        groups.append((np.array([k]), normals[k]))
+    return groups
+
+
+def _loops(faces: np.ndarray) -> list[list[int]] | None:
+    """Boundary loops of a set of triangles as vertex lists in the triangles' winding.
+
+    None if the boundary is not a set of simple loops (a vertex with two outgoing edges).
+    """
+    directed = [(int(a), int(b)) for a, b in
+                np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])]
+    inside = set(directed)
+    nxt = {}
+    for a, b in directed:
+        if (b, a) not in inside:
+            if a in nxt:
+                return None
+            nxt[a] = b
+    loops = []
+    while nxt:
+        start = next(iter(nxt))
+        loop, cur = [start], nxt.pop(start)
+        while cur != start:
+            loop.append(cur)
+            cur = nxt.pop(cur, None)
+            if cur is None:
+                return None
+        loops.append(loop)
+    return loops
+
+
+def _signed_area(points: np.ndarray, normal: np.ndarray) -> float:
+    """Area of a closed polygon (k, 3) projected on ``normal``, > 0 if counter-clockwise about it."""
+    return 0.5 * float(np.dot(np.cross(points, np.roll(points, -1, axis=0)).sum(axis=0), normal))
+
+
+# ---------------------------------------------------------------- the solid
+
+def build_step_solid(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: np.ndarray,
+                     inner_faces: np.ndarray, mount_radius_mm: float, samples_u: int,
+                     samples_v: int) -> tuple[object, dict]:
+    """The lens as an OCCT solid (TopoDS_Solid) and figures about it.
+
+    Arguments as ``write_step``.  Returns (solid, dict(fit_s, build_s, poles_u, poles_v,
+    faces, deviation dict, bore dict)).
+    """
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeVertex
+    from OCP.Geom import Geom_CylindricalSurface
+    from OCP.gp import gp_Ax3, gp_Dir, gp_Pnt
+    from OCP.TopoDS import TopoDS, TopoDS_Shell, TopoDS_Solid
+
+    v = np.asarray(inner_vertices, np.float64)
+    f = np.asarray(inner_faces, np.int64)
+    bore = plan_bore(v, f, mount_radius_mm)
+    height = cyl.height_mm
+    t0 = time.perf_counter()
+    fit = bspline_poles(cyl, heights, samples_u, samples_v)
+    occ = _occ_surface(fit)
+    t_fit = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    outer = BRepBuilderAPI_MakeFace(occ, 0.0, 2 * np.pi, 0.0, height, OCC_TOLERANCE_MM)
+    if not outer.IsDone():
+        raise GeometryError(f"STEP: outer B-spline face failed ({outer.Error()})")
+    outer = outer.Face()
+    bore_mf = BRepBuilderAPI_MakeFace(Geom_CylindricalSurface(gp_Ax3(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1)),
+                                                              bore.radius_mm),
+                                      0.0, 2 * np.pi, 0.0, bore.z_floor_mm, OCC_TOLERANCE_MM)
+    if not bore_mf.IsDone():
+        raise GeometryError(f"STEP: bore cylinder face failed ({bore_mf.Error()})")
+    # The cylinder's natural normal points away from the axis, into the glass: reverse it.
+    bore_face = TopoDS.Face_s(bore_mf.Face().Reversed())
+    # An edge shared by two faces is used in opposite directions: the neighbour takes it reversed.
+    bottom = _planar_face((0, 0, 0), (0, 0, -1), _wire([_boundary_edge(outer, 0.0).Reversed()]),
+                          [_wire([_boundary_edge(bore_face, 0.0).Reversed()])])
+    top = _planar_face((0, 0, height), (0, 0, 1), _wire([_boundary_edge(outer, height).Reversed()]))
+    faces = [outer, top, bottom, bore_face]
+
+    # Cavity: the inner layer's planar regions, normals flipped to point out of the glass.
+    vertex_cache, edge_cache = {}, {}
+
+    def vertex(i):
+        if i not in vertex_cache:
+            vertex_cache[i] = BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, v[i]))).Vertex()
+        return vertex_cache[i]
+
+    def edge(a, b):
+        key = (min(a, b), max(a, b))
+        if key not in edge_cache:
+            edge_cache[key] = BRepBuilderAPI_MakeEdge(vertex(key[0]), vertex(key[1])).Edge()
+        e = edge_cache[key]
+        return e if a == key[0] else e.Reversed()
+
+    floor_hole = _wire([_boundary_edge(bore_face, bore.z_floor_mm).Reversed()])
+    floor_done = False
+    for group, n in _facet_groups(v, f):
+        loops = _loops(f[group]) if len(group) > 1 else [list(map(int, f[group[0]]))]
+        if loops is None:
+            loops_per = [[list(map(int, f[k]))] for k in group]
+            normals = [np.cross(v[f[k, 1]] - v[f[k, 0]], v[f[k, 2]] - v[f[k, 0]]) for k in group]
+            parts = [(lp, nn / np.linalg.norm(nn)) for lp, nn in zip(loops_per, normals)]
+        else:
+            parts = [(loops, n)]
+        for loops, n in parts:
+            out_n = -n
+            # Reversed loops run counter-clockwise about the outward normal -n.
+            loops = [lp[::-1] for lp in loops]
+            areas = [_signed_area(v[lp], out_n) for lp in loops]
+            outers = [k for k, a in enumerate(areas) if a > 0]
+            if len(outers) != 1:
+                raise GeometryError(f"STEP: an inner-layer facet has {len(outers)} outer boundaries")
+            wires = [_wire([edge(lp[k], lp[(k + 1) % len(lp)]) for k in range(len(lp))]) for lp in loops]
+            outer_wire = wires[outers[0]]
+            holes = [w for k, w in enumerate(wires) if k != outers[0]]
+            is_floor = (not floor_done and out_n[2] > 1 - 1e-12
+                        and abs(v[loops[0][0], 2] - bore.z_floor_mm) <= PLANAR_MM
+                        and _contains_disk(v[loops[outers[0]]][:, :2], bore.radius_mm + 0.5 * BORE_LEDGE_MM))
+            if is_floor:
+                holes.append(floor_hole)
+                floor_done = True
+            faces.append(_planar_face(v[np.concatenate(loops)].mean(axis=0), out_n, outer_wire, holes))
+    if not floor_done:
+        raise GeometryError(f"STEP: no single planar face of the inner layer's floor at z = {bore.z_floor_mm:.3f} mm "
+                            f"holds the bore's circle (radius {bore.radius_mm:g} mm); the floor must be flat to "
+                            f"{PLANAR_MM:g} mm and horizontal")
+
+    builder = BRep_Builder()
+    shell = TopoDS_Shell()
+    builder.MakeShell(shell)
+    for face in faces:
+        builder.Add(shell, face)
+    shell.Closed(True)
+    solid = TopoDS_Solid()
+    builder.MakeSolid(solid)
+    builder.Add(solid, shell)
+    t_build = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    dev = deviation(cyl, heights, occ, samples_u, samples_v)
+    t_dev = time.perf_counter() - t0
+    return solid, {"fit_s": t_fit, "build_s": t_build, "deviation_s": t_dev, "poles_u": int(fit["poles"].shape[0]),
+                   "poles_v": int(fit["poles"].shape[1]), "faces": len(faces), "deviation": dev,
+                   "bore": {"radius_mm": bore.radius_mm, "z_floor_mm": bore.z_floor_mm}}
+
+
+def _contains_disk(polygon_xy: np.ndarray, radius: float) -> bool:
+    """Whether a simple polygon (k, 2) contains the disk of ``radius`` around the origin."""
+    p, q = polygon_xy, np.roll(polygon_xy, -1, axis=0)
+    crossings = ((p[:, 1] > 0) != (q[:, 1] > 0)) & \
+        (p[:, 0] + (0 - p[:, 1]) * (q[:, 0] - p[:, 0]) / np.where(q[:, 1] == p[:, 1], 1, q[:, 1] - p[:, 1]) > 0)
+    if crossings.sum() % 2 == 0:
+        return False
+    d = q - p
+    t = np.clip(-np.einsum("ij,ij->i", p, d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-300), 0, 1)
+    return bool(np.min(np.linalg.norm(p + t[:, None] * d, axis=1)) >= radius)
+
+
+def shape_figures(shape) -> dict:
+    """dict(n_solids, valid (BRepCheck_Analyzer), closed (every shell), volume_mm3, faces)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepCheck import BRepCheck_Analyzer
+    from OCP.BRepGProp import BRepGProp
+    from OCP.GProp import GProp_GProps
+    from OCP.TopAbs import TopAbs_FACE, TopAbs_SHELL, TopAbs_SOLID
+    from OCP.TopExp import TopExp_Explorer
+
+    def count(kind):
+        ex, n, items = TopExp_Explorer(shape, kind), 0, []
+        while ex.More():
+            n += 1
+            items.append(ex.Current())
+            ex.Next()
+        return n, items
+
+    n_solids, _ = count(TopAbs_SOLID)
+    n_faces, _ = count(TopAbs_FACE)
+    _, shells = count(TopAbs_SHELL)
+    props = GProp_GProps()
+    BRepGProp.VolumeProperties_s(shape, props, VOLUME_EPS)
+    return {"n_solids": n_solids, "valid": bool(BRepCheck_Analyzer(shape).IsValid()),
+            "closed": bool(shells) and all(BRep_Tool.IsClosed_s(s) for s in shells),
+            "volume_mm3": float(props.Mass()), "faces": n_faces}
+
+
+@contextlib.contextmanager
+def _quiet():
+    """Silence OCCT's default messenger (the STEP writer prints transfer statistics)."""
+    from OCP.Message import Message
+
+    messenger = Message.DefaultMessenger_s()
+    printers = messenger.Printers()
+    saved = [printers.Value(i) for i in range(1, printers.Size() + 1)]
+    for p in saved:
+        messenger.RemovePrinter(p)
+    try:
+        yield
+    finally:
+        for p in saved:
+            messenger.AddPrinter(p)
+
+
+def write_step(path, cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: np.ndarray,
+               inner_faces: np.ndarray, mount_radius_mm: float, samples_u: int, samples_v: int,
+               expected_volume_mm3: float | None = None) -> dict:
+    """Write the lens as a STEP (AP214, mm) solid to ``path`` atomically; return figures.
+
+    cyl: plain cylinder (mm); heights: (nu, nv) float mm node offsets; inner_vertices
+    (n, 3) float mm, inner_faces (m, 3) int: the closed inner layer with outward winding;
+    mount_radius_mm: the bore radius (the bore is planned as in ``solid.plan_bore``);
+    samples_u x samples_v: interpolation samples of the B-spline (its pole counts).
+    If ``expected_volume_mm3`` (e.g. the STL solid's) is given, the STEP solid's volume
+    must match it within ``tolerances.VOLUME_REL``.
+
+    Returns dict(valid, closed, n_solids, volume_mm3, faces, poles_u, poles_v,
+    deviation_mm (radial, between samples), deviation {...}, file_bytes, fit_s, build_s,
+    check_s, write_s).  Raises GeometryError if the solid is invalid, open, or has a
+    non-positive or unexpected volume.
+    """
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.Interface import Interface_Static
+    from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
+
+    from . import tolerances
+
+    solid, info = build_step_solid(cyl, heights, inner_vertices, inner_faces, mount_radius_mm,
+                                   samples_u, samples_v)
+    t0 = time.perf_counter()
+    figs = shape_figures(solid)
+    info["check_s"] = time.perf_counter() - t0
+    if not (figs["valid"] and figs["closed"] and figs["n_solids"] == 1 and figs["volume_mm3"] > 0):
+        raise GeometryError(f"STEP: the assembled solid fails its checks: {figs}")
+    if expected_volume_mm3 is not None:
+        rel = abs(figs["volume_mm3"] - expected_volume_mm3) / expected_volume_mm3
+        if rel > tolerances.VOLUME_REL:
+            raise GeometryError(f"STEP: solid volume {figs['volume_mm3']:.3f} mm^3 differs from the expected "
+                                f"{expected_volume_mm3:.3f} by {rel:.2%} (limit {tolerances.VOLUME_REL:.1%})")
+    t0 = time.perf_counter()
+    Interface_Static.SetCVal_s("write.step.unit", "MM")
+    writer = STEPControl_Writer()
+    with _quiet(), atomic_path(path, suffix=".step") as tmp:
+        if writer.Transfer(solid, STEPControl_AsIs) != IFSelect_RetDone:
+            raise GeometryError("STEP: transferring the solid to the writer failed")
+        if writer.Write(str(tmp)) != IFSelect_RetDone:
+            raise GeometryError(f"STEP: writing {path} failed")
+    info["write_s"] = time.perf_counter() - t0
+    info.update(figs)
+    info["deviation_mm"] = info["deviation"]["radial_mm"]
+    info["file_bytes"] = Path(path).stat().st_size
+    return info
+
+
+def read_step(path) -> dict:
+    """Import a STEP file and check it: dict(n_solids, valid, volume_mm3, closed, faces).
+
+    Raises LampfabError if the file is missing or cannot be read.
+    """
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.STEPControl import STEPControl_Reader
+
+    if not Path(path).is_file():
+        raise LampfabError(f"{path}: not found")
+    reader = STEPControl_Reader()
+    with _quiet():
+        if reader.ReadFile(str(path)) != IFSelect_RetDone:
+            raise LampfabError(f"{path}: not a readable STEP file")
+        reader.TransferRoots()
+    return shape_figures(reader.OneShape())

@@ -1,0 +1,170 @@
+"""The outer surface: a smooth radial heightmap over the cylinder's angle u and height z.
+
+The heightmap ``h`` holds radial offsets in mm at the nodes of a (u, v) grid:
+``u_i = 2*pi*i/nu`` (periodic) and ``z_j = height*j/(nv-1)`` (both ends included).
+The surface is the bicubic spline through those nodes (periodic cubic in u,
+not-a-knot cubic in z):
+
+    X(u, z) = (R + s(u, z)) * (cos u, sin u, 0) + (0, 0, z)
+
+Every consumer uses this one surface: the optimizer traces its tessellation with true
+facet normals, the STL is a tessellation of it, the STEP interpolates it.  Sampling
+is a linear operator ``A_u @ h @ A_v.T``, so gradients pull back with the transposes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+
+@lru_cache(maxsize=32)
+def periodic_matrix(n: int, m: int) -> np.ndarray:
+    """(m, n) float64: values at n periodic nodes -> periodic cubic spline at m samples.
+
+    Nodes at 2*pi*i/n, samples at 2*pi*k/m.  Uniform cubic B-spline: the control
+    points solve the circulant system (c[i-1] + 4 c[i] + c[i+1]) / 6 = y[i] (by FFT),
+    then each sample mixes four control points with the B-spline weights.
+    """
+    stencil = np.zeros(n)
+    stencil[[0, 1, -1]] = [4 / 6, 1 / 6, 1 / 6]
+    inverse = np.real(np.fft.ifft(1.0 / np.fft.fft(stencil)))
+    solve = np.stack([np.roll(inverse, i) for i in range(n)], 1)  # circulant inverse
+    t = np.arange(m) * (n / m)
+    base = np.floor(t).astype(np.int64)
+    f = t - base
+    weights = np.stack([(1 - f) ** 3, 3 * f**3 - 6 * f**2 + 4, -3 * f**3 + 3 * f**2 + 3 * f + 1, f**3], 1) / 6
+    basis = np.zeros((m, n))
+    for k in range(4):
+        np.add.at(basis, (np.arange(m), (base + k - 1) % n), weights[:, k])
+    return basis @ solve
+
+
+@lru_cache(maxsize=32)
+def open_matrix(n: int, m: int) -> np.ndarray:
+    """(m, n) float64: values at n nodes on [0, 1] -> not-a-knot cubic spline at m samples."""
+    from scipy.interpolate import make_interp_spline
+
+    x = np.linspace(0.0, 1.0, n)
+    k = 3 if n >= 4 else n - 1
+    spline = make_interp_spline(x, np.eye(n), k=k)
+    return spline(np.linspace(0.0, 1.0, m))
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """The plain outer cylinder the heightmap displaces (mm)."""
+    radius_mm: float
+    height_mm: float
+
+    def node_u(self, nu: int) -> np.ndarray:
+        """(nu,) float64 rad."""
+        return np.arange(nu) * (2 * np.pi / nu)
+
+    def node_z(self, nv: int) -> np.ndarray:
+        """(nv,) float64 mm."""
+        return np.linspace(0.0, self.height_mm, nv)
+
+
+def sample(heights: np.ndarray, mu: int, mv: int) -> np.ndarray:
+    """(nu, nv) mm at nodes -> (mu, mv) mm on the finer grid of the same spline."""
+    nu, nv = heights.shape
+    return periodic_matrix(nu, mu) @ heights @ open_matrix(nv, mv).T
+
+
+def sample_adjoint(grad_fine: np.ndarray, nu: int, nv: int) -> np.ndarray:
+    """Pull a gradient on the (mu, mv) samples back to the (nu, nv) nodes."""
+    mu, mv = grad_fine.shape
+    return periodic_matrix(nu, mu).T @ grad_fine @ open_matrix(nv, mv)
+
+
+def fine_shape(nu: int, nv: int, tessellation: int) -> tuple[int, int]:
+    """Sample counts of a tessellation with ``tessellation`` vertices per cell edge."""
+    return nu * tessellation, (nv - 1) * tessellation + 1
+
+
+def refine(heights: np.ndarray, factor: int = 4) -> np.ndarray:
+    """The same surface on a grid ``factor`` times finer in u and v (coarse-to-fine)."""
+    nu, nv = heights.shape
+    return sample(heights, nu * factor, (nv - 1) * factor + 1)
+
+
+def points(cyl: Cylinder, fine: np.ndarray) -> np.ndarray:
+    """(mu, mv) mm radial offsets -> (mu, mv, 3) float64 mm surface points."""
+    mu, mv = fine.shape
+    u = cyl.node_u(mu)[:, None]
+    z = cyl.node_z(mv)[None, :]
+    r = cyl.radius_mm + fine
+    return np.stack([r * np.cos(u), r * np.sin(u), np.broadcast_to(z, r.shape)], axis=-1)
+
+
+def radial_dirs(mu: int, mv: int) -> np.ndarray:
+    """(mu*mv, 3) float64: d point / d offset for each vertex (unit radial vectors)."""
+    u = np.repeat(np.arange(mu) * (2 * np.pi / mu), mv)
+    return np.stack([np.cos(u), np.sin(u), np.zeros_like(u)], axis=-1)
+
+
+def grid_faces(mu: int, mv: int) -> np.ndarray:
+    """(2*mu*(mv-1), 3) int64 triangles of a periodic (mu, mv) vertex grid, outward winding.
+
+    Vertex (i, j) has index i*mv + j.  Each quad is split along the diagonal that
+    alternates with i+j parity so the tessellation has no preferred direction.
+    """
+    i, j = np.meshgrid(np.arange(mu), np.arange(mv - 1), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    a = i * mv + j
+    b = ((i + 1) % mu) * mv + j
+    c = b + 1
+    d = a + 1
+    flip = ((i + j) % 2).astype(bool)
+    # Outward normal: (b - a) is +u (tangent e_theta), (d - a) is +z; e_theta x e_z = e_r.
+    t1 = np.where(flip[:, None], np.stack([a, b, c], 1), np.stack([a, b, d], 1))
+    t2 = np.where(flip[:, None], np.stack([a, c, d], 1), np.stack([b, c, d], 1))
+    return np.concatenate([t1, t2]).astype(np.int64)
+
+
+def outer_mesh(cyl: Cylinder, heights: np.ndarray, tessellation: int) -> tuple[np.ndarray, np.ndarray]:
+    """Tessellated outer surface: ((mu*mv, 3) float64 mm vertices, (F, 3) int64 faces)."""
+    mu, mv = fine_shape(*heights.shape, tessellation)
+    fine = sample(heights, mu, mv)
+    return points(cyl, fine).reshape(-1, 3), grid_faces(mu, mv)
+
+
+def cap_faces(mu: int, mv: int, centre_bottom: int, centre_top: int) -> np.ndarray:
+    """Fans closing the bottom (z=0) and top rims of the grid to two centre vertices.
+
+    Winding makes the bottom face -z and the top face +z (outward for a solid).
+    """
+    i = np.arange(mu)
+    nxt = (i + 1) % mu
+    bottom = np.stack([np.full(mu, centre_bottom), nxt * mv, i * mv], 1)
+    top = np.stack([np.full(mu, centre_top), i * mv + mv - 1, nxt * mv + mv - 1], 1)
+    return np.concatenate([bottom, top]).astype(np.int64)
+
+
+def closed_outer_mesh(cyl: Cylinder, heights: np.ndarray, tessellation: int) -> tuple[np.ndarray, np.ndarray]:
+    """The outer surface closed by flat caps at z = 0 and z = height: a closed mesh (mm)."""
+    verts, faces = outer_mesh(cyl, heights, tessellation)
+    mu, mv = fine_shape(*heights.shape, tessellation)
+    n = len(verts)
+    centres = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, cyl.height_mm]])
+    caps = cap_faces(mu, mv, n, n + 1)
+    return np.vstack([verts, centres]), np.vstack([faces, caps])
+
+
+def slopes_deg(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int) -> tuple[np.ndarray, np.ndarray]:
+    """Angle between the surface normal and the radial direction, and its (u, z) parts.
+
+    Returns ((mu, mv) float64 deg total tilt, (mu, mv) float64 deg tilt along z).
+    """
+    fine = sample(heights, mu, mv)
+    r = cyl.radius_mm + fine
+    du = 2 * np.pi / mu
+    dz = cyl.height_mm / (mv - 1)
+    dr_du = (np.roll(fine, -1, 0) - np.roll(fine, 1, 0)) / (2 * du)
+    dr_dz = np.gradient(fine, dz, axis=1)
+    tan_u = dr_du / r
+    tilt = np.degrees(np.arctan(np.hypot(tan_u, dr_dz)))
+    return tilt, np.degrees(np.arctan(np.abs(dr_dz)))

@@ -1,0 +1,203 @@
+"""A photon tracer through the lens's true facets, onto the walls.
+
+Mitsuba only intersects rays with the triangle mesh (its BVH, on the CPU or GPU); the
+optics run in numpy: each hit refracts or reflects with the Fresnel probability, using
+the hit triangle's geometric normal ``si.n`` (never an interpolated shading normal: a
+printed or milled part has only its facets).  Photons that leave the lens are splatted
+onto the wall rectangles; every photon counts (no camera connection), and the numpy
+splat is deterministic for a given seed.
+
+The mesh must be a closed, consistently oriented solid (outward normals): the sign of
+``dot(d, n)`` says whether a photon enters or leaves the glass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import tolerances
+from .mi_env import mitsuba
+from .room import Wall
+
+BATCH = 4_000_000  # photons per Mitsuba call: ~300 MB of state, fits any laptop
+
+
+class MeshScene:
+    """A Mitsuba scene holding one triangle mesh, for ray intersection only."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+        mi = mitsuba()
+        self.mi = mi
+        self.mesh = mi.Mesh("lens", len(vertices), len(faces), has_vertex_normals=False,
+                            has_vertex_texcoords=False)
+        params = mi.traverse(self.mesh)
+        params["vertex_positions"] = mi.Float(np.ascontiguousarray(vertices, np.float32).ravel())
+        params["faces"] = mi.UInt(np.ascontiguousarray(faces, np.uint32).ravel())
+        params.update()
+        self.scene = mi.load_dict({"type": "scene", "lens": self.mesh})
+
+    def intersect(self, o: np.ndarray, d: np.ndarray):
+        """Nearest hits: (valid (n,) bool, points (n, 3) float64 mm, face normals (n, 3))."""
+        import drjit as dr
+
+        mi = self.mi
+        f32 = lambda a: mi.Float(np.ascontiguousarray(a, np.float32))  # noqa: E731
+        ray = mi.Ray3f(mi.Point3f(f32(o[:, 0]), f32(o[:, 1]), f32(o[:, 2])),
+                       mi.Vector3f(f32(d[:, 0]), f32(d[:, 1]), f32(d[:, 2])))
+        si = self.scene.ray_intersect(ray, mi.RayFlags.Minimal, False)
+        valid = si.is_valid()
+        dr.eval(valid, si.p, si.n)
+        p = np.stack([si.p.x.numpy(), si.p.y.numpy(), si.p.z.numpy()], 1).astype(np.float64)
+        n = np.stack([si.n.x.numpy(), si.n.y.numpy(), si.n.z.numpy()], 1).astype(np.float64)
+        return valid.numpy().astype(bool), p, n
+
+
+def _vec(mi, a: np.ndarray):
+    f32 = lambda c: mi.Float(np.ascontiguousarray(c, np.float32))  # noqa: E731
+    return mi.Vector3f(f32(a[:, 0]), f32(a[:, 1]), f32(a[:, 2]))
+
+
+def _np(v) -> np.ndarray:
+    return np.stack([v.x.numpy(), v.y.numpy(), v.z.numpy()], 1).astype(np.float64)
+
+
+def emit(mi, light_mm: np.ndarray, radius_mm: float, n: int, rng):
+    """Photons from the LED: an isotropic point, or a Lambertian sphere of ``radius_mm``.
+
+    Returns Dr.Jit (origins, unit directions) for ``n`` photons.
+    """
+    import drjit as dr
+
+    d = mi.warp.square_to_uniform_sphere(mi.Point2f(rng.next_float32(), rng.next_float32()))
+    o = mi.Point3f(*[float(c) for c in light_mm])
+    if radius_mm <= 0:
+        return dr.zeros(mi.Point3f, n) + o, d
+    # Cosine-weighted about the sphere's normal: a Lambertian emitter.
+    local = mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32()))
+    return o + radius_mm * d, mi.Frame3f(d).to_world(local)
+
+
+def _take(cls, v, index):
+    """Rows ``index`` of a Dr.Jit 3-vector array (stream compaction)."""
+    import drjit as dr
+
+    return cls(*(dr.gather(type(c), c, index) for c in (v.x, v.y, v.z)))
+
+
+def refract_or_reflect(mi, d, n, ior: float, xi):
+    """New unit directions at a dielectric interface (glass of ``ior`` in air).
+
+    ``n`` are the hit facets' outward normals.  Reflection is chosen with the
+    unpolarized Fresnel probability (always under total internal reflection).
+    """
+    import drjit as dr
+
+    cos_dn = dr.dot(d, n)
+    entering = cos_dn < 0
+    eta = dr.select(entering, ior, 1.0 / ior)  # n_transmitted / n_incident
+    facing = dr.select(entering, n, -n)
+    cos_i = dr.abs(cos_dn)
+    sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
+    cos_t = dr.safe_sqrt(1.0 - sin2_t)
+    rs = dr.square((cos_i - eta * cos_t) / (cos_i + eta * cos_t))
+    rp = dr.square((eta * cos_i - cos_t) / (eta * cos_i + cos_t))
+    fresnel = dr.select(sin2_t >= 1.0, 1.0, 0.5 * (rs + rp))
+    return dr.normalize(dr.select(xi < fresnel, d + 2.0 * cos_i * facing,
+                                  d / eta + (cos_i / eta - cos_t) * facing))
+
+
+def propagate(mi, scene, o, d, ior: float, seed: int, max_bounces: int, on_escape) -> int:
+    """Follow photons through the lens until they leave it.
+
+    One wavefront per interface, compacted so finished photons cost nothing.
+    ``scene`` holds one closed solid with outward normals; refraction uses the hit
+    facet's geometric normal ``si.n``.  ``on_escape(o, d)`` receives each wavefront's
+    escaping photons (Dr.Jit arrays).  Returns how many are still inside after
+    ``max_bounces`` interfaces.
+    """
+    import drjit as dr
+
+    for bounce in range(max_bounces):
+        n = dr.width(d)
+        if n == 0:
+            return 0
+        si = scene.ray_intersect(mi.Ray3f(o, d), mi.RayFlags.Minimal, False)
+        valid = si.is_valid()
+        # One kernel for the intersection; gathers below would otherwise re-run it.
+        dr.eval(valid, si.p, si.n, o, d)
+        gone = dr.compress(~valid)
+        if dr.width(gone):
+            on_escape(_take(mi.Point3f, o, gone), _take(mi.Vector3f, d, gone))
+        live = dr.compress(valid)
+        # Opaque seeds: a literal would be baked into the kernel and force a recompile.
+        rng = mi.PCG32(dr.width(live), dr.opaque(mi.UInt64, seed), dr.opaque(mi.UInt64, (bounce + 1) << 48))
+        p = _take(mi.Point3f, si.p, live)
+        d = refract_or_reflect(mi, _take(mi.Vector3f, d, live), _take(mi.Vector3f, si.n, live),
+                               ior, rng.next_float32())
+        o = p + tolerances.RAY_EPSILON_MM * d
+        dr.eval(o, d)
+    return dr.width(d)
+
+
+def pixel_hits(mi, walls: list[Wall], shapes: list[tuple[int, int]], o, d):
+    """Where escaped photons land first: per photon a global pixel index (walls' images
+    concatenated in order), or -1 for none.  Dr.Jit in, (n,) int64 numpy out."""
+    import drjit as dr
+
+    best_t = dr.full(mi.Float, dr.inf, dr.width(d))
+    pixel = dr.full(mi.Int32, -1, dr.width(d))
+    offset = 0
+    for wall, (rows, cols) in zip(walls, shapes):
+        normal = mi.Vector3f(*wall.normal.tolist())
+        origin = mi.Point3f(*wall.origin.tolist())
+        denom = dr.dot(d, normal)
+        t = dr.dot(origin - o, normal) / denom
+        rel = o + t * d - origin
+        a = dr.dot(rel, mi.Vector3f(*wall.right.tolist())) / wall.width_mm**2
+        b = dr.dot(rel, mi.Vector3f(*wall.down.tolist())) / wall.height_mm**2
+        hit = (denom < 0) & (t > 0) & (t < best_t) & (a >= 0) & (a < 1) & (b >= 0) & (b < 1)
+        col = dr.minimum(mi.Int32(a * cols), cols - 1)
+        row = dr.minimum(mi.Int32(b * rows), rows - 1)
+        best_t = dr.select(hit, t, best_t)
+        pixel = dr.select(hit, offset + row * cols + col, pixel)
+        offset += rows * cols
+    return pixel.numpy().astype(np.int64)
+
+
+def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float, ior: float,
+                 walls: list[Wall], shapes: list[tuple[int, int]], photons: int, seed: int,
+                 max_bounces: int = 8) -> tuple[list[np.ndarray], dict]:
+    """Trace ``photons`` photons from the LED through the lens onto the walls.
+
+    Returns (per-wall flux images (rows, cols) float64, {"shares": [...], "lost": f,
+    "trapped": f}) with flux as a fraction of the emitted light.  The per-pixel sums
+    run in numpy in a fixed order, so a seed gives the same images every time.
+    """
+    import drjit as dr
+
+    mi = scene.mi
+    sizes = [r * c for r, c in shapes]
+    counts = np.zeros(sum(sizes), np.int64)
+    trapped = 0
+    done = 0
+    batch_index = 0
+    while done < photons:
+        n = min(BATCH, photons - done)
+        batch_seed = seed * 1_000_003 + batch_index
+        rng = mi.PCG32(n, dr.opaque(mi.UInt64, batch_seed), dr.opaque(mi.UInt64, 0))
+        o, d = emit(mi, light_mm, light_radius_mm, n, rng)
+
+        def land(o_out, d_out):
+            pixel = pixel_hits(mi, walls, shapes, o_out, d_out)
+            counts[:] += np.bincount(pixel[pixel >= 0], minlength=len(counts))
+
+        trapped += propagate(mi, scene.scene, o, d, ior, batch_seed, max_bounces, land)
+        done += n
+        batch_index += 1
+    flux = counts / photons
+    images = [img.reshape(s) for img, s in zip(np.split(flux, np.cumsum(sizes)[:-1]), shapes)]
+    shares = [float(img.sum()) for img in images]
+    return images, {"shares": shares, "lost": 1.0 - sum(shares) - trapped / photons,
+                    "trapped": trapped / photons}

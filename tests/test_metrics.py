@@ -1,0 +1,85 @@
+"""lampfab.metrics: figures of resemblance between a render and its target."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from lampfab.metrics import compare, pearson, share, ssim
+
+
+@pytest.fixture
+def target():
+    rng = np.random.default_rng(7)
+    y, x = np.mgrid[0:48, 0:64]
+    img = ((x - 32) ** 2 + (y - 24) ** 2 < 15 ** 2).astype(float)  # a disc
+    return 0.8 * img + 0.1 * rng.random(img.shape)
+
+
+def test_identical_images(target):
+    assert pearson(target, target) == pytest.approx(1.0)
+    assert ssim(target, target) == pytest.approx(1.0)
+    assert compare(target, target) == pytest.approx({"pearson": 1.0, "ssim": 1.0})
+
+
+def test_negative_image_anticorrelates(target):
+    negative = 1.0 - target
+    assert pearson(negative, target) < -0.9
+    assert ssim(negative, target) < 0.0
+
+
+def test_scale_invariance(target):
+    render = target + 0.05 * np.random.default_rng(3).random(target.shape)
+    a, b = compare(render, target), compare(3.0 * render, target)
+    assert b["pearson"] == pytest.approx(a["pearson"], abs=1e-12)
+    assert b["ssim"] == pytest.approx(a["ssim"], abs=1e-12)
+    c = compare(render, 0.25 * target)  # the target's brightness does not matter either
+    assert c["ssim"] == pytest.approx(a["ssim"], abs=1e-12)
+    assert 0.5 < a["pearson"] < 1.0 and 0.0 < a["ssim"] < 1.0
+
+
+def test_all_zero_render_gives_zero_not_nan(target):
+    dark = np.zeros_like(target)
+    figures = compare(dark, target)
+    assert figures == {"pearson": 0.0, "ssim": 0.0}
+    assert not any(math.isnan(v) for v in figures.values())
+
+
+def test_constant_render_gives_zero_pearson(target):
+    flat = np.full_like(target, 0.3)
+    assert pearson(flat, target) == 0.0
+    assert math.isfinite(ssim(flat, target))
+
+
+def test_blur_lowers_figures(target):
+    from scipy.ndimage import gaussian_filter
+
+    blurred = gaussian_filter(target, 3.0)
+    assert ssim(blurred, target) < 0.95
+    assert 0.0 < pearson(blurred, target) < 1.0
+
+
+def test_small_images_use_a_smaller_window():
+    rng = np.random.default_rng(0)
+    img = rng.random((5, 9))
+    assert ssim(img, img) == pytest.approx(1.0)
+    with pytest.raises(ValueError):
+        ssim(rng.random((2, 9)), rng.random((2, 9)))
+
+
+def test_shape_mismatch_and_nan_raise(target):
+    with pytest.raises(ValueError):
+        pearson(target, target[:-1])
+    bad = target.copy()
+    bad[0, 0] = np.nan
+    with pytest.raises(ValueError):
+        ssim(bad, target)
+
+
+def test_share():
+    assert share(0.25, 1.0) == 0.25
+    assert share(np.full((10, 10), 0.01), 2.0) == pytest.approx(0.5)
+    with pytest.raises(ValueError):
+        share(1.0, 0.0)

@@ -1,0 +1,34 @@
+import warnings
+
+import numpy as np
+
+from lampfab import losses, ot
+
+
+def test_transport_map_pushes_uniform_light_onto_a_disc():
+    n, m = 32, 24
+    yy, xx = np.meshgrid((np.arange(m) + 0.5) / m, (np.arange(n) + 0.5) / n)
+    target = (((xx - 0.5) ** 2 + (yy - 0.5) ** 2) < 0.09).astype(float)
+    grid_n = (np.arange(n) + 0.5) / n
+    grid_m = (np.arange(m) + 0.5) / m
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        y1, y2, err = ot.barycentric_map(np.ones((n, n)), target, grid_n, grid_n, grid_n, grid_m, (1 / n) ** 2)
+    pushed, _, _ = np.histogram2d(y1.ravel(), y2.ravel(), bins=[n, m], range=[[0, 1], [0, 1]])
+    assert err < 0.02
+    assert np.corrcoef(pushed.ravel(), target.ravel())[0, 1] > 0.9
+    assert pushed[target == 0].sum() < 0.05 * pushed.sum()  # dark stays dark
+    # An OT map of a uniform source is monotone along each axis.
+    assert np.all(np.diff(y1, axis=0) > -1e-6) and np.all(np.diff(y2, axis=1) > -1e-6)
+
+
+def test_scale_independent_loss_ignores_brightness(rng):
+    render, target = rng.random((8, 8)), rng.random((8, 8))
+    a = losses.si_mse(render, target, np.mean)
+    assert np.isclose(a, losses.si_mse(5.0 * render, 0.1 * target, np.mean))
+    assert losses.si_mse(target, target, np.mean) == 0.0
+
+
+def test_cyclic_schedule_visits_one_view_per_step():
+    assert [losses.views_for_step("cyclic", t, 3) for t in range(4)] == [[0], [1], [2], [0]]
+    assert losses.views_for_step("joint", 5, 3) == [0, 1, 2]

@@ -1,0 +1,133 @@
+"""The lens solid (manifold3d) and the STL round trip, on a small lens (fast)."""
+
+import numpy as np
+import pytest
+
+from lampfab import solid, stl, surface
+from lampfab.errors import GeometryError, LampfabError
+from lampfab.inner import default_inner_mesh, winding_number
+
+CYL = surface.Cylinder(radius_mm=40.0, height_mm=80.0)
+
+
+def bumps(nu=32, nv=8, seed=0, amp=2.0):
+    """Smooth random bumps of +-amp mm: a few low harmonics around and up."""
+    rng = np.random.default_rng(seed)
+    u = np.arange(nu)[:, None] * (2 * np.pi / nu)
+    z = np.linspace(0.0, 1.0, nv)[None, :]
+    h = np.zeros((nu, nv))
+    for k in range(1, 5):
+        for m in range(3):
+            a, b, c = rng.normal(size=3)
+            h += a * np.cos(k * u + b) * np.cos(m * np.pi * z + c)
+    return h * (amp / np.abs(h).max())
+
+
+def inner(sections=32, **kw):
+    mesh = default_inner_mesh(sections=sections, **kw)
+    return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
+
+
+@pytest.fixture(scope="module")
+def lens():
+    v, f = inner()
+    return solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=6.0)
+
+
+def test_solid_is_closed_one_body_with_expected_volume(lens):
+    topo = solid.edge_check(lens.faces)
+    assert topo == {"watertight": True, "winding_consistent": True, "components": 1, "euler": 2}
+    assert lens.genus == 0
+    assert lens.vertices.dtype == np.float64 and lens.faces.dtype == np.int64
+    assert solid.mesh_volume(lens.vertices, lens.faces) == pytest.approx(lens.volume_mm3, rel=1e-9)
+    # Independent bookkeeping: outer mesh - inner cylinder - bore polygon prism under the floor.
+    ov, of = surface.closed_outer_mesh(CYL, bumps(), 2)
+    iv, inf = inner()
+    bore = lens.bore
+    assert (bore.z_floor_mm, bore.radius_mm) == (12.0, 6.0)
+    expected = solid.mesh_volume(ov, of) - solid.mesh_volume(iv, inf) - bore.polygon_area_mm2 * 12.0
+    assert lens.volume_mm3 == pytest.approx(expected, rel=1e-9)
+    assert lens.vertices[:, 2].min() == pytest.approx(0.0, abs=1e-12)
+    assert lens.vertices[:, 2].max() == pytest.approx(80.0, abs=1e-12)
+
+
+def test_cavity_opens_through_the_base(lens):
+    v, f = lens.vertices, lens.faces
+    # Up the axis from below the base to the LED: never inside the glass.
+    for z in (-0.5, 0.01, 6.0, 11.99, 12.01, 40.0):
+        assert abs(winding_number(v, f, np.array([0.0, 0.0, z]))) < 1e-6, z
+    assert winding_number(v, f, np.array([30.0, 0.0, 40.0])) == pytest.approx(1.0, abs=1e-6)   # wall
+    assert winding_number(v, f, np.array([10.0, 0.0, 6.0])) == pytest.approx(1.0, abs=1e-6)    # base beside bore
+    assert winding_number(v, f, np.array([0.0, 0.0, 74.0])) == pytest.approx(1.0, abs=1e-6)   # roof
+
+
+def test_bore_wider_than_the_inner_floor_is_refused():
+    v, f = inner()       # 32-gon of radius 20: the floor reaches 20 cos(pi/32) = 19.90 mm
+    with pytest.raises(LampfabError, match=r"mount_radius_mm 19\.6 is too large.*reaches 19\.90 mm.*<= 19\.40"):
+        solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=19.6)
+    assert solid.plan_bore(v, f, 19.3).floor_reach_mm == pytest.approx(20 * np.cos(np.pi / 32))
+
+
+def test_inner_layer_without_flat_bottom_is_refused():
+    import trimesh
+
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=15.0)
+    ball.apply_translation([0.0, 0.0, 40.0])
+    with pytest.raises(LampfabError, match="no flat bottom"):
+        solid.build_solid(CYL, bumps(), 2, np.asarray(ball.vertices), np.asarray(ball.faces, np.int64), 6.0)
+
+
+def test_inner_layer_crossing_the_outer_surface_is_refused():
+    v, f = inner(radius_mm=39.0)
+    with pytest.raises(LampfabError, match="crosses the outer surface"):
+        solid.build_solid(CYL, bumps(), 2, v, f, 6.0)
+
+
+def test_manifold_status_becomes_geometry_error():
+    v, f = inner()
+    with pytest.raises(GeometryError, match="inner layer.*NotManifold"):
+        solid.build_solid(CYL, bumps(), 2, v, f[:-1], 6.0)       # one triangle missing: open
+    heights = bumps()
+    heights[3, 0] = np.nan
+    with pytest.raises(GeometryError, match="outer surface.*NonFiniteVertex"):
+        solid.build_solid(CYL, heights, 2, v, f, 6.0)
+
+
+def test_edge_check_sees_holes_flips_and_shells():
+    tet = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    assert solid.edge_check(tet) == {"watertight": True, "winding_consistent": True, "components": 1, "euler": 2}
+    assert not solid.edge_check(tet[:3])["watertight"]
+    flipped = tet.copy()
+    flipped[0] = flipped[0, ::-1]
+    assert not solid.edge_check(flipped)["winding_consistent"]
+    two = solid.edge_check(np.vstack([tet, tet + 4]))
+    assert (two["components"], two["euler"]) == (2, 4)
+
+
+def test_cavity_mesh_is_inner_plus_bore():
+    v, f = inner()
+    cv, cf, bore = solid.cavity_mesh(v, f, 6.0)
+    assert solid.edge_check(cf)["watertight"]
+    expected = solid.mesh_volume(v, f) + bore.polygon_area_mm2 * (bore.z_floor_mm - bore.z_bottom_mm)
+    assert solid.mesh_volume(cv, cf) == pytest.approx(expected, rel=1e-9)
+    assert cv[:, 2].min() == pytest.approx(-1.0)
+
+
+def test_stl_round_trip(lens, tmp_path):
+    path = tmp_path / "lens.stl"
+    size = stl.write_stl(path, lens.vertices, lens.faces)
+    assert path.stat().st_size == size == 84 + 50 * len(lens.faces)      # binary STL
+    assert not list(tmp_path.glob(".lens.stl.*"))                         # no temporary left
+    v, f = stl.read_stl(path)
+    assert (len(v), len(f)) == (len(lens.vertices), len(lens.faces))
+    assert solid.edge_check(f) == {"watertight": True, "winding_consistent": True, "components": 1, "euler": 2}
+    assert solid.mesh_volume(v, f) == pytest.approx(lens.volume_mm3, rel=1e-6)
+
+
+def test_read_stl_errors(tmp_path):
+    with pytest.raises(LampfabError, match="not found"):
+        stl.read_stl(tmp_path / "missing.stl")
+    bad = tmp_path / "bad.stl"
+    bad.write_bytes(b"\x00" * 10)
+    with pytest.raises(LampfabError):
+        stl.read_stl(bad)

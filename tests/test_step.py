@@ -1,0 +1,103 @@
+"""The STEP solid (OCP): B-spline fit, assembly, write and read back, on a small lens."""
+
+import numpy as np
+import pytest
+
+pytest.importorskip("OCP")
+
+from lampfab import solid, step, stl, surface  # noqa: E402
+from lampfab.errors import GeometryError, LampfabError  # noqa: E402
+
+from test_solid import CYL, bumps, inner  # noqa: E402
+
+SAMPLES = (64, 15)          # aligned with the 32 x 8 heightmap: 2 per cell in u and v
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("step")
+    v, f = inner()
+    mesh = solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=6.0)
+    stl.write_stl(folder / "lens.stl", mesh.vertices, mesh.faces)
+    sv, sf = stl.read_stl(folder / "lens.stl")
+    info = step.write_step(folder / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES,
+                           expected_volume_mm3=mesh.volume_mm3)
+    return folder, info, solid.mesh_volume(sv, sf)
+
+
+def test_spline_at_is_surface_spline():
+    h = bumps()
+    for mu, mv in ((64, 15), (77, 9), (5, 4)):
+        uu, zz = np.meshgrid(CYL.node_u(mu), CYL.node_z(mv), indexing="ij")
+        got = step.spline_at(CYL, h, uu.ravel(), zz.ravel()).reshape(mu, mv)
+        np.testing.assert_allclose(got, surface.sample(h, mu, mv), atol=1e-12)
+
+
+def test_bspline_interpolates_the_samples():
+    fit = step.bspline_poles(CYL, bumps(), *SAMPLES)
+    assert fit["poles"].shape == (64, 15, 3)
+    occ = step._occ_surface(fit)
+    dev = step.deviation(CYL, bumps(), occ, *SAMPLES)
+    assert dev["interpolation_mm"] < 1e-9
+    assert dev["radial_mm"] < 0.05 and dev["parametric_mm"] < 0.05
+
+
+def test_step_round_trip(written):
+    folder, info, stl_volume = written
+    assert info["valid"] and info["closed"] and info["n_solids"] == 1
+    assert (info["poles_u"], info["poles_v"]) == SAMPLES
+    assert info["faces"] == 4 + 34              # outer, top, bottom, bore + 32 sides, roof, floor
+    assert info["deviation_mm"] < 0.05
+    path = folder / "lens.step"
+    assert info["file_bytes"] == path.stat().st_size
+    assert not list(folder.glob(".lens.step.*"))
+    assert "SI_UNIT(.MILLI.,.METRE.)" in path.read_text()
+    back = step.read_step(path)
+    assert back["n_solids"] == 1 and back["valid"] and back["closed"]
+    assert back["faces"] == info["faces"]
+    assert back["volume_mm3"] == pytest.approx(info["volume_mm3"], rel=1e-9)
+    assert back["volume_mm3"] == pytest.approx(stl_volume, rel=5e-3)
+
+
+def test_step_bore_opens_the_cavity(written):
+    from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+    from OCP.gp import gp_Pnt
+    from OCP.STEPControl import STEPControl_Reader
+    from OCP.TopAbs import TopAbs_IN, TopAbs_OUT
+
+    reader = STEPControl_Reader()
+    reader.ReadFile(str(written[0] / "lens.step"))
+    reader.TransferRoots()
+    shape = reader.OneShape()
+
+    def state(x, y, z):
+        return BRepClass3d_SolidClassifier(shape, gp_Pnt(x, y, z), 1e-7).State()
+
+    for z in (0.01, 6.0, 11.99, 40.0):
+        assert state(0.0, 0.0, z) == TopAbs_OUT, z
+    assert state(10.0, 0.0, 6.0) == TopAbs_IN
+    assert state(30.0, 0.0, 40.0) == TopAbs_IN
+    assert state(0.0, 0.0, 74.0) == TopAbs_IN
+
+
+def test_step_refuses_a_bore_too_wide_and_writes_nothing(tmp_path):
+    v, f = inner()
+    with pytest.raises(LampfabError, match="too large"):
+        step.write_step(tmp_path / "lens.step", CYL, bumps(), v, f, 19.6, *SAMPLES)
+    assert not list(tmp_path.iterdir())
+
+
+def test_step_volume_mismatch_is_an_error(tmp_path):
+    v, f = inner()
+    with pytest.raises(GeometryError, match="differs from the expected"):
+        step.write_step(tmp_path / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES, expected_volume_mm3=1e5)
+    assert not (tmp_path / "lens.step").exists()
+
+
+def test_read_step_errors(tmp_path):
+    with pytest.raises(LampfabError, match="not found"):
+        step.read_step(tmp_path / "missing.step")
+    bad = tmp_path / "bad.step"
+    bad.write_text("not a step file\n")
+    with pytest.raises(LampfabError, match="not a readable STEP"):
+        step.read_step(bad)

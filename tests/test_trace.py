@@ -1,0 +1,55 @@
+import numpy as np
+import pytest
+
+from lampfab import lens, room, trace, transport
+
+
+def _dr(mi, a):
+    return mi.Vector3f(*[mi.Float(a[:, k].astype(np.float32)) for k in range(3)])
+
+
+def _np(v):
+    return np.stack([v.x.numpy(), v.y.numpy(), v.z.numpy()], 1)
+
+
+def test_fresnel_and_snell_at_a_flat_interface(mi):
+    n = 20000
+    normal = np.tile([0.0, 0.0, 1.0], (n, 1))
+    down = np.tile([0.0, 0.0, -1.0], (n, 1))
+    xi = mi.Float(np.linspace(0, 1, n, endpoint=False).astype(np.float32))
+    out = _np(trace.refract_or_reflect(mi, _dr(mi, down), _dr(mi, normal), 1.5, xi))
+    reflected = np.mean(out[:, 2] > 0)
+    assert reflected == pytest.approx(((1.5 - 1) / (1.5 + 1)) ** 2, abs=1e-3)  # 4 % at normal incidence
+    s30 = np.sin(np.radians(30))
+    slanted = np.tile([s30, 0.0, -np.cos(np.radians(30))], (n, 1))
+    out = _np(trace.refract_or_reflect(mi, _dr(mi, slanted), _dr(mi, normal), 1.5, mi.Float(np.ones(n, np.float32))))
+    assert out[0, 0] == pytest.approx(s30 / 1.5, abs=1e-6)  # Snell, entering glass
+
+
+def test_snell_normals_send_light_where_asked(mi, rng):
+    d_in = rng.normal(size=(500, 3)) * [0.2, 0.2, 0.2] + [1.0, 0.0, 0.0]
+    d_in /= np.linalg.norm(d_in, axis=1, keepdims=True)
+    d_out = rng.normal(size=(500, 3)) * [0.3, 0.3, 0.3] + [1.0, 0.0, 0.0]
+    d_out /= np.linalg.norm(d_out, axis=1, keepdims=True)
+    # Only deflections a glass-air interface can make (below ~48°, TIR beyond).
+    feasible = np.degrees(np.arccos(np.sum(d_in * d_out, 1))) < 35
+    d_in, d_out = d_in[feasible], d_out[feasible]
+    assert len(d_in) > 300
+    n = transport.snell_normals(d_in, d_out, 1.49)
+    got = _np(trace.refract_or_reflect(mi, _dr(mi, d_in), _dr(mi, n), 1.49, mi.Float(np.ones(len(d_in), np.float32))))
+    assert np.allclose(got, d_out, atol=1e-5)
+
+
+def test_render_conserves_light_and_is_deterministic(mi, default_design, cyl, inner_layer):
+    walls = room.walls(default_design)
+    shapes = [room.image_shape(w, 16) for w in walls]
+    v, f = lens.optical_mesh(cyl, np.zeros((32, 9)), 2, *inner_layer)
+    scene = trace.MeshScene(v, f)
+    light = room.light_position(default_design)
+    a, info = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3)
+    b, _ = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+    assert sum(info["shares"]) + info["lost"] + info["trapped"] == pytest.approx(1.0)
+    assert 0.02 < min(info["shares"]) and info["trapped"] < 0.05
+    # The plain lens is symmetric: the three walls get the same light within noise.
+    assert max(info["shares"]) - min(info["shares"]) < 0.01
