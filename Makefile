@@ -12,7 +12,8 @@ TARGET_LEFT  ?=
 TARGET_RIGHT ?=
 TARGET_FLOOR ?=
 
-B      := build/$(NAME)
+BUILD  ?= build
+B      := $(BUILD)/$(NAME)
 VENV   := .venv
 PY     := $(VENV)/bin/python
 READY  := $(VENV)/.installed
@@ -88,6 +89,6 @@ bench: $(READY)
 	$(PY) bench/bench_methods.py
 
 clean:
-	rm -rf build
+	rm -rf $(BUILD)
 
 FORCE:

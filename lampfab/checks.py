@@ -81,18 +81,12 @@ def run_checks(cyl: Cylinder, heights: np.ndarray, inner_vertices: np.ndarray, i
     reuse earlier measurements (``compute_fields`` / ``inspect_mesh``); ``samples`` is
     the (u, z) grid of the outer surface (raised to 2x the nodes).
     """
-    if mesh is None:
-        # pymeshlab releases the GIL: inspect the mesh in a thread while numpy measures the
-        # surface (measured 5.8 s -> see report; the self-intersection test dominates).
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(max_workers=1) as pool:
-            job = pool.submit(inspect_mesh, solid_vertices, solid_faces, self_intersections)
-            if fields is None:
-                fields = cached_fields(cyl, heights, inner_vertices, inner_faces, fab.mount_radius_mm, samples)
-            mesh = job.result()
     if fields is None:
         fields = cached_fields(cyl, heights, inner_vertices, inner_faces, fab.mount_radius_mm, samples)
+    if mesh is None:
+        # Main thread only: pymeshlab run in a worker thread corrupted the heap (glibc
+        # "malloc_consolidate(): unaligned fastbin chunk", abort at exit, 6 of 6 runs).
+        mesh = inspect_mesh(solid_vertices, solid_faces, self_intersections)
     iv = np.asarray(inner_vertices, np.float64)
     fi = np.asarray(inner_faces, np.int64)
     sv = np.asarray(solid_vertices, np.float64)
@@ -241,8 +235,8 @@ def _overhang(f: Fields, fab: Fabrication) -> dict:
                    worst=_cell_place(f, int(i), int(j)), note=note)
 
 
-def cavity_overhang_faces(iv: np.ndarray, fi: np.ndarray, fab: Fabrication):
-    """Inner-layer faces that are overhangs of the solid: ((m,) deg past vertical, (m,) mm^2).
+def cavity_overhang_faces(iv: np.ndarray, fi: np.ndarray):
+    """Per inner-layer face (m faces): ((m,) deg the solid leans past vertical there, (m,) mm^2).
 
     The solid's surface in the cavity faces opposite to the inner layer's normals (those
     point into the glass), so a cavity face is down-facing where the inner normal points
@@ -260,7 +254,7 @@ def _cavity_overhang(iv, fi, fab: Fabrication) -> dict:
     if fab.process != "sla":
         return _result("cavity_overhang", None, None, "deg", True, applies=False,
                        note=f"process {fab.process!r} is not built in layers")
-    angle, area = cavity_overhang_faces(iv, fi, fab)
+    angle, area = cavity_overhang_faces(iv, fi)
     value = float(angle.max())
     steep = angle >= value - 1.0
     centroids = iv[fi].mean(axis=1)
@@ -268,10 +262,10 @@ def _cavity_overhang(iv, fi, fab: Fabrication) -> dict:
     # walls that hold it up.
     mid = (centroids[steep] * area[steep, None]).sum(axis=0) / max(area[steep].sum(), 1e-300)
     bad = angle > OVERHANG_DEG + _ANGLE_TOL
-    note = (f"printed upright, the cavity's ceiling is an overhang inside the part: "
-            f"{area[bad].sum():.1f} mm^2 of it leans past {OVERHANG_DEG:.0f} deg from vertical, "
-            f"where supports could not be removed through the bore. A self-supporting roof (a cone or "
-            f"dome no flatter than {OVERHANG_DEG:.0f} deg) in the inner layer avoids it.")
+    note = (f"printed upright, the cavity's down-facing surfaces (its ceiling) are overhangs inside "
+            f"the part, where supports could not be removed through the bore: {area[bad].sum():.1f} "
+            f"mm^2 lean past {OVERHANG_DEG:.0f} deg from vertical. A self-supporting roof in the inner "
+            f"layer (a cone or dome no flatter than {OVERHANG_DEG:.0f} deg from vertical) avoids it.")
     return _result("cavity_overhang", value, OVERHANG_DEG, "deg", value <= OVERHANG_DEG + _ANGLE_TOL,
                    worst=_place(mid), note=note)
 
@@ -346,7 +340,8 @@ def _drain(m: MeshReport, sv, sf, light, f: Fields, fab: Fabrication) -> dict:
         note += " The mesh is open (see mesh_valid): shells and voids are uncertain."
     if fab.process == "sla":
         if 2 * fab.mount_radius_mm < DRAIN_HOLE_MM:
-            note += f" The bore ({2 * fab.mount_radius_mm} mm across) is below the {DRAIN_HOLE_MM} mm drain hole SLA guides ask for."
+            note += (f" The bore ({2 * fab.mount_radius_mm} mm across) is below the {DRAIN_HOLE_MM} mm "
+                     f"drain hole SLA guides ask for.")
         note += (" Printed upright with the base flat on the platform the bore is closed by it: the cavity "
                  "becomes a sealed cup while printing (suction on every peel, trapped resin); print it on "
                  "supports or raft with a gap under the bore.")
@@ -404,7 +399,7 @@ def paint_checks(path_png, cyl: Cylinder, heights: np.ndarray, inner_vertices: n
     """Write ``checks.png``: one panel per check, the unrolled outer surface (u across from
     0 to 360 deg, z up) coloured by wall thickness, failing cells red, the worst place
     ringed.  Arguments as ``run_checks``; ``results`` its output."""
-    from .checks_paint import paint
+    from .checks_paint import cavity_cells, paint
 
     if fields is None:
         fields = cached_fields(cyl, heights, inner_vertices, inner_faces, fab.mount_radius_mm, samples)
@@ -415,7 +410,7 @@ def paint_checks(path_png, cyl: Cylinder, heights: np.ndarray, inner_vertices: n
         "max_slope": slope_cells(fields, fab),
         "tool_radius": tool_cells(fields, fab),
         "overhang": overhang_cells(fields, fab),
-        "cavity_overhang": _cavity_cells(iv, fi, fields, fab),
+        "cavity_overhang": cavity_cells(iv, fi, fields, fab),
     }
     # The caps are not on the unrolled side: a thin cap paints its edge row.
     if fields.wall_top < fab.min_wall_mm:
@@ -423,22 +418,3 @@ def paint_checks(path_png, cyl: Cylinder, heights: np.ndarray, inner_vertices: n
     if fields.wall_base < fab.min_wall_mm:
         cells["min_wall"][:, 0] = True
     paint(path_png, fields, results, cells, fab)
-
-
-def _cavity_cells(iv, fi, f: Fields, fab: Fabrication) -> np.ndarray:
-    """Cavity overhang faces splatted onto the (u, z) grid at their corners and centroid."""
-    out = np.zeros(f.wall.shape, bool)
-    if fab.process != "sla":
-        return out
-    angle, _ = cavity_overhang_faces(iv, fi, fab)
-    bad = angle > OVERHANG_DEG + _ANGLE_TOL
-    if not bad.any():
-        return out
-    tri = iv[fi[bad]]
-    pts = np.concatenate([tri.reshape(-1, 3), tri.mean(axis=1)])
-    mu, mv = out.shape
-    u = np.arctan2(pts[:, 1], pts[:, 0]) % (2 * np.pi)
-    i = np.round(u / (2 * np.pi) * mu).astype(int) % mu
-    j = np.clip(np.round(pts[:, 2] / f.z[-1] * (mv - 1)).astype(int), 0, mv - 1)
-    out[i, j] = True
-    return out

@@ -64,8 +64,9 @@ def inspect_mesh(vertices: np.ndarray, faces: np.ndarray, self_intersections: bo
     welded = degenerate = 0
     key, counts, order, start = _edges(f, len(v))
     if (counts == 1).any():
-        v, f, welded, degenerate = weld(v, f)
-        if welded:
+        wv, wf, welded, degenerate = weld(v, f)
+        if welded or degenerate:                     # else keep the caller's vertex order
+            v, f = wv, wf
             key, counts, order, start = _edges(f, len(v))
     places: dict = {}
 
@@ -149,7 +150,11 @@ def _nearest_to_mean(pts: np.ndarray) -> np.ndarray:
 
 
 def _meshlab(v, f, self_intersections):
-    """pymeshlab's topological measures and self-intersecting faces ((m,) bool or None)."""
+    """pymeshlab's topological measures and self-intersecting faces ((m,) bool or None).
+
+    Call it from the main thread: run in a worker thread pymeshlab 2025.7 corrupted the
+    heap (glibc abort at interpreter exit, every time).
+    """
     import pymeshlab
 
     ms = pymeshlab.MeshSet()

@@ -128,3 +128,26 @@ def _header(Image, ImageDraw, font, w, fab, results, vmax):
     label = f"{vmax:.1f} mm"
     draw.text((w - 8 * len(label), TITLE_PX + bar_h + 2), label, fill=(230, 230, 230), font=font)
     return panel
+
+
+def cavity_cells(iv, fi, f: Fields, fab: Fabrication) -> np.ndarray:
+    """(mu, mv) bool: cavity overhang faces splatted onto the (u, z) grid of the outer
+    surface at their corners and centroids (the cavity is not on that surface; this
+    marks the heights and directions where it overhangs)."""
+    from .checks import OVERHANG_DEG, _ANGLE_TOL, cavity_overhang_faces
+
+    out = np.zeros(f.wall.shape, bool)
+    if fab.process != "sla":
+        return out
+    angle, _ = cavity_overhang_faces(iv, fi)
+    bad = angle > OVERHANG_DEG + _ANGLE_TOL
+    if not bad.any():
+        return out
+    tri = iv[fi[bad]]
+    pts = np.concatenate([tri.reshape(-1, 3), tri.mean(axis=1)])
+    mu, mv = out.shape
+    u = np.arctan2(pts[:, 1], pts[:, 0]) % (2 * np.pi)
+    i = np.round(u / (2 * np.pi) * mu).astype(int) % mu
+    j = np.clip(np.round(pts[:, 2] / f.z[-1] * (mv - 1)).astype(int), 0, mv - 1)
+    out[i, j] = True
+    return out

@@ -19,18 +19,26 @@ DEFAULT_INNER = Path(__file__).resolve().parent / "data" / "inner_default.obj"
 FORMATS = (".obj", ".ply", ".stl", ".glb", ".off")
 
 
-def default_inner_mesh(radius_mm: float = 18.0, z0_mm: float = 12.0, z1_mm: float = 78.0,
+def default_inner_mesh(radius_mm: float = 12.0, z0_mm: float = 10.0, z1_mm: float = 86.0,
                        sections: int = 1024):
-    """The bundled inner layer: a closed cylinder, 1024 facets around (mm).
+    """The bundled inner layer: a cylinder with a 45° conical roof, 1024 facets around (mm).
+
+    Slim and tall (r 12 mm, side wall up to 29 mm above the LED): light through the
+    side wall covers +-67° of elevation, and light through the roof leaves by the top
+    cap.  A wide, low cavity would make the roof bend light onto the same part of the
+    outer surface as the side wall, from another direction: no surface can send both
+    to one place.
 
     1024 facets: at 256 their edges throw visible stripes on the walls (the source's
-    "dark bands"); at 1024 the gaps are ~3 mm at 1 m, below a wall pixel.
+    "dark bands"); at 1024 the gaps are ~3 mm at 1 m, below a wall pixel.  The conical
+    roof is self-supporting when printed upright (a flat one would be a 36 mm
+    overhang inside the part, where supports cannot be removed).  The flat floor is
+    where the LED bore enters.
     """
     import trimesh
 
-    mesh = trimesh.creation.cylinder(radius=radius_mm, height=z1_mm - z0_mm, sections=sections)
-    mesh.apply_translation([0.0, 0.0, 0.5 * (z0_mm + z1_mm)])
-    return mesh
+    profile = [[0.0, z0_mm], [radius_mm, z0_mm], [radius_mm, z1_mm - radius_mm], [0.0, z1_mm]]
+    return trimesh.creation.revolve(profile, sections=sections)
 
 
 def load_inner(path: str | Path | None, scale: float, light_mm: np.ndarray,

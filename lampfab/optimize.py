@@ -2,10 +2,12 @@
 vertices, a per-view loss, one view per step (cyclic) or all (joint), plain gradient
 descent or Adam, coarse-to-fine x4.
 
-The optimized variables are the heightmap nodes; the traced mesh is the spline
-surface tessellated ``tessellation`` times finer with flat facets, i.e. the surface
-that is exported.  Vertex gradients are pulled back to the nodes through the
-(linear) spline sampling.
+The surface is always the full-resolution heightmap; the traced mesh is its spline
+tessellated ``tessellation`` times finer with flat facets, i.e. the surface that is
+exported.  Coarse-to-fine is in the steps: level k moves the surface by a spline on a
+grid 4^(levels-1-k) times coarser, whose gradient is the vertex gradient pulled back
+through the (linear) spline sampling.  Monte Carlo noise in per-vertex gradients
+averages out over a coarse node's footprint, and the finest level adds detail last.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ EXPLODE_FACTOR = 20.0
 @dataclass
 class State:
     """Everything needed to resume: the heightmap, the step rule's moments, the log."""
-    heights: np.ndarray
+    heights: np.ndarray  # (grid_u, grid_v) mm: the full-resolution surface
     level: int
     step: int
     lr_scale: float = 1.0
@@ -39,17 +41,16 @@ class State:
     log: list = field(default_factory=list)  # rows: (step, level, view, loss, seconds)
 
     def to_arrays(self) -> dict:
-        nu, nv = self.heights.shape
-        zeros = np.zeros((nu, nv))
         return {"heights": self.heights, "level": self.level, "step": self.step,
-                "lr_scale": self.lr_scale, "m": zeros if self.m is None else self.m,
-                "v": zeros if self.v is None else self.v, "adam_t": self.adam_t,
+                "lr_scale": self.lr_scale, "m": np.zeros(0) if self.m is None else self.m,
+                "v": np.zeros(0) if self.v is None else self.v, "adam_t": self.adam_t,
                 "log": np.asarray(self.log, np.float64).reshape(-1, 5)}
 
     @staticmethod
     def from_arrays(a: dict) -> "State":
+        moments = (a["m"], a["v"]) if a["m"].size else (None, None)
         return State(heights=a["heights"], level=int(a["level"]), step=int(a["step"]),
-                     lr_scale=float(a["lr_scale"]), m=a["m"], v=a["v"], adam_t=int(a["adam_t"]),
+                     lr_scale=float(a["lr_scale"]), m=moments[0], v=moments[1], adam_t=int(a["adam_t"]),
                      log=[tuple(r) for r in a["log"]])
 
 
@@ -62,12 +63,11 @@ def level_grids(opt: Optimize) -> list[tuple[int, int]]:
     return grids
 
 
-def level_steps(opt: Optimize, first_level: int) -> list[int]:
-    """Steps per level: split evenly over the levels actually run."""
-    runs = opt.levels - first_level
-    base = [opt.iterations // runs] * runs
+def level_steps(opt: Optimize) -> list[int]:
+    """Steps per level: split evenly."""
+    base = [opt.iterations // opt.levels] * opt.levels
     base[-1] += opt.iterations - sum(base)
-    return [0] * first_level + base
+    return base
 
 
 class Interrupted(Exception):
@@ -77,12 +77,13 @@ class Interrupted(Exception):
 class SeedOptimizer:
     def __init__(self, cyl: surface.Cylinder, inner_vertices: np.ndarray, inner_faces: np.ndarray,
                  light_mm: np.ndarray, ior: float, walls: list[Wall], targets: list[np.ndarray],
-                 opt: Optimize, max_offset_mm: float):
+                 opt: Optimize, max_offset_mm: float, max_tilt_deg: float):
         self.cyl, self.inner_v, self.inner_f = cyl, inner_vertices, inner_faces
         self.light, self.ior, self.walls, self.opt = light_mm, ior, walls, opt
         self.targets = [np.asarray(t, np.float64) for t in targets]
         self.shapes = [t.shape for t in self.targets]
         self.max_offset = max_offset_mm
+        self.max_tilt = max_tilt_deg
         self._scene_grid = None
 
     # -- scene --------------------------------------------------------------------
@@ -142,25 +143,33 @@ class SeedOptimizer:
         g_fine = np.einsum("ij,ij->i", g, self.radial).reshape(mu, mv)
         return total, surface.sample_adjoint(g_fine, *heights.shape)
 
+    def makeable(self, heights: np.ndarray) -> np.ndarray:
+        """Project a step back into what the fabrication profile allows (slopes, offsets)."""
+        from .transport import limit_slopes
+
+        heights, _ = limit_slopes(self.cyl, heights, self.max_tilt)
+        return np.clip(heights, -self.max_offset, self.max_offset)
+
     # -- loop ---------------------------------------------------------------------
-    def step_update(self, state: State, grad: np.ndarray) -> np.ndarray:
+    def step_delta(self, state: State, grad: np.ndarray) -> np.ndarray:
+        """The step on the level's grid (mm), by plain gradient descent or Adam."""
         lr = self.opt.learning_rate * state.lr_scale
         if self.opt.step == "gd":
-            return state.heights - lr * grad
+            return -lr * grad
         b1, b2, eps = 0.9, 0.999, 1e-12
         state.adam_t += 1
         state.m = b1 * state.m + (1 - b1) * grad
         state.v = b2 * state.v + (1 - b2) * grad**2
         m_hat = state.m / (1 - b1**state.adam_t)
         v_hat = state.v / (1 - b2**state.adam_t)
-        return state.heights - lr * m_hat / (np.sqrt(v_hat) + eps)
+        return -lr * m_hat / (np.sqrt(v_hat) + eps)
 
-    def run(self, state: State, first_level: int, on_checkpoint, on_preview, progress) -> State:
+    def run(self, state: State, on_checkpoint, on_preview, progress) -> State:
         """Optimize from ``state`` to the end, calling ``on_checkpoint(state)`` every
         ``checkpoint_every`` steps and on SIGINT/SIGTERM (then raising Interrupted)."""
         opt = self.opt
         grids = level_grids(opt)
-        steps = level_steps(opt, first_level)
+        steps = level_steps(opt)
         stop = {"signal": None}
 
         def handler(signum, _frame):
@@ -168,14 +177,13 @@ class SeedOptimizer:
 
         old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
         try:
+            full = grids[-1]
             for level in range(state.level, opt.levels):
-                if state.heights.shape != grids[level]:
-                    state.heights = surface.refine(state.heights, 4)
-                    state.m = state.v = None
+                grid = grids[level]
+                if state.m is None or state.m.shape != grid:
+                    state.m = np.zeros(grid)
+                    state.v = np.zeros(grid)
                     state.adam_t = 0
-                if state.m is None or state.m.shape != state.heights.shape:
-                    state.m = np.zeros_like(state.heights)
-                    state.v = np.zeros_like(state.heights)
                 state.level = level
                 end = sum(steps[: level + 1])
                 best = {}
@@ -185,7 +193,8 @@ class SeedOptimizer:
                 while state.step < end:
                     t0 = time.time()
                     views = losses.views_for_step(opt.schedule, state.step, len(self.walls))
-                    loss, grad = self.gradient(state.heights, views, seed=opt.seed * 100_003 + state.step * 17)
+                    loss, grad_full = self.gradient(state.heights, views, seed=opt.seed * 100_003 + state.step * 17)
+                    grad = surface.sample_adjoint(grad_full, *grid)
                     if not (np.isfinite(loss) and np.all(np.isfinite(grad))):
                         state.lr_scale *= 0.5
                         progress(state, loss, "non-finite loss or gradient: step skipped, learning rate halved")
@@ -198,7 +207,7 @@ class SeedOptimizer:
                         state.step += 1
                         continue
                     best[key] = min(best.get(key, math.inf), loss)
-                    state.heights = np.clip(self.step_update(state, grad), -self.max_offset, self.max_offset)
+                    state.heights = self.makeable(state.heights + surface.sample(self.step_delta(state, grad), *full))
                     state.log.append((state.step, level, key, loss, time.time() - t0))
                     state.step += 1
                     progress(state, loss, "")

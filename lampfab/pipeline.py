@@ -193,16 +193,15 @@ def init(build: Build) -> dict:
     report = artifacts.StageReport("init", build.target_paths(), build.settings())
     grid = (opt.grid_u, opt.grid_v)
     if opt.init == "cylinder":
-        from .optimize import level_grids
-
-        heights = np.zeros(level_grids(opt)[0])
+        heights = np.zeros(grid)
         report.figure(method="cylinder")
     else:
         iv, if_ = build.inner()
         heights, figs = transport.design(
             build.cylinder, build.walls, build.targets(min(64, opt.grid_v)), iv, if_, build.light,
             build.fab.ior, grid, opt.tessellation, opt.transport_rounds, opt.transport_photons,
-            opt.smoothness, d.lens.max_offset_mm, build.fab.max_slope_deg, opt.seed, log=_log)
+            opt.smoothness, d.lens.max_offset_mm, build.fab.max_slope_deg, opt.seed,
+            corrections=opt.transport_corrections, dump_share=opt.dump_share, log=_log)
         report.figure(method="transport", **figs)
     artifacts.write_npz(build.path("init.npz"), heights=heights)
     report.write(build.path("init.json"))
@@ -220,17 +219,15 @@ def optimize(build: Build) -> dict:
     report = artifacts.StageReport("optimize", {"init": build.path("init.npz"), **build.target_paths()},
                                    build.settings())
     init_heights = artifacts.read_npz(build.path("init.npz"))["heights"]
-    grids = opt_mod.level_grids(opt)
-    first_level = grids.index(init_heights.shape) if init_heights.shape in grids else None
-    if first_level is None:
-        raise LampfabError(f"{build.path('init.npz')}: grid {init_heights.shape} matches no level of "
-                           f"{grids}; re-run init")
+    if init_heights.shape != (opt.grid_u, opt.grid_v):
+        raise LampfabError(f"{build.path('init.npz')}: grid {init_heights.shape} is not the profile's "
+                           f"({opt.grid_u}, {opt.grid_v}); re-run init")
     iv, if_ = build.inner()
     targets = build.targets(opt.sensor_px)
     seed_opt = opt_mod.SeedOptimizer(build.cylinder, iv, if_, build.light, build.fab.ior, build.walls,
-                                     targets, opt, d.lens.max_offset_mm)
+                                     targets, opt, d.lens.max_offset_mm, build.fab.max_slope_deg)
     checkpoint = build.path("checkpoint.npz")
-    state = opt_mod.State(init_heights.copy(), first_level, 0)
+    state = opt_mod.State(init_heights.copy(), 0, 0)
     resumed = False
     if checkpoint.exists():
         saved = artifacts.read_npz(checkpoint)
@@ -259,15 +256,13 @@ def optimize(build: Build) -> dict:
     if state.step == 0 and opt.iterations:
         preview(state)
     try:
-        state = seed_opt.run(state, first_level, save, preview, progress)
+        state = seed_opt.run(state, save, preview, progress)
     except opt_mod.Interrupted:
         bar.close()
         raise LampfabError(f"optimize interrupted at step {state.step}; checkpoint saved to {checkpoint}, "
                            f"run the same command again to resume") from None
     bar.close()
     heights = state.heights
-    if heights.shape != grids[-1]:
-        heights = surface.refine(heights, 4 ** (len(grids) - 1 - grids.index(heights.shape)))
     artifacts.write_npz(build.path("heightmap.npz"), heights=heights, radius_mm=d.lens.outer_radius_mm,
                         height_mm=d.lens.height_mm)
     log = np.asarray(state.log).reshape(-1, 5)
@@ -323,7 +318,8 @@ def check(build: Build, allow_fail: bool) -> dict:
     heights = load_heights(build)
     sv = artifacts.read_npz(build.path("solid.npz"))
     results = checks.run_checks(build.cylinder, heights, iv, if_, sv["vertices"], sv["faces"], build.fab, build.light)
-    checks.paint_checks(build.path("checks.png"), build.cylinder, heights, iv, if_, results)
+    checks.paint_checks(build.path("checks.png"), build.cylinder, heights, iv, if_, sv["vertices"], sv["faces"],
+                        build.fab, build.light, results)
     failed = [r for r in results if r["applies"] and not r["passed"]]
     report.figure(checks=results, passed=not failed, allowed_to_fail=allow_fail)
     for r in results:

@@ -63,6 +63,8 @@ class Optimize:
     tessellation: int = _spec(4, 1, 16, doc="mesh vertices per heightmap cell edge (the STL uses the same)")
     transport_rounds: int = _spec(4, 1, 20, doc="position/normal rounds of the transport init")
     transport_photons: int = _spec(2_000_000, 10_000, 100_000_000, doc="photons for the source density")
+    transport_corrections: int = _spec(3, 0, 20, doc="trace-and-re-aim passes after the first transport")
+    dump_share: float = _spec(0.2, 0.0, 0.9, doc="light the transport may send just past the image's edges")
     smoothness: float = _spec(1e-3, 0.0, 10.0, doc="curvature penalty in the normal integration")
     preview_every: int = _spec(50, 1, 1_000_000, doc="preview images every N steps")
     checkpoint_every: int = _spec(20, 1, 1_000_000, doc="checkpoint every N steps")

@@ -20,21 +20,26 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
 from . import lens, ot, surface
-from .room import Wall
+from .room import SECTOR_WIDTH_DEG, Wall
+
+# Share of the largest deflection a slope-limited surface can make that the transport
+# plans with: the rest is left for the tilt that inner-layer refraction already needs.
+REACH_MARGIN = 0.8
 
 # Least-squares weight of nodes whose light reaches no target (back sector, nodes
 # without photons): they only follow their neighbours smoothly.
 UNASSIGNED_WEIGHT = 1e-2
 
 
-def source_density(cyl: surface.Cylinder, heights: np.ndarray, tessellation: int,
-                   inner_vertices: np.ndarray, inner_faces: np.ndarray, light_mm: np.ndarray,
-                   ior: float, photons: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Light arriving at the outer surface from inside, binned on the heightmap nodes.
+def node_light(cyl: surface.Cylinder, heights: np.ndarray, tessellation: int,
+               inner_vertices: np.ndarray, inner_faces: np.ndarray, light_mm: np.ndarray,
+               ior: float, photons: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Light passing the outer surface, binned on the heightmap nodes.
 
-    Returns ((nu, nv) float64 flux fraction per node, (nu, nv, 3) float64 mean unit
-    direction inside the glass).  Photons are refracted at the inner layer's facets
-    (no Fresnel loss: only where light goes matters here).
+    Photons are refracted at the inner layer's facets and at the outer surface's
+    facets (no Fresnel loss: only where light goes matters here).  Returns
+    ((nu, nv) flux fraction per node, (nu, nv, 3) mean unit direction inside the glass,
+    (nu, nv, 3) mean unit direction after leaving it), float64.
     """
     import drjit as dr
 
@@ -52,21 +57,28 @@ def source_density(cyl: surface.Cylinder, heights: np.ndarray, tessellation: int
     o = si.p + 1e-4 * d
     si = scene.scene.ray_intersect(mi.Ray3f(o, d), mi.RayFlags.Minimal, False)
     valid = si.is_valid()
-    dr.eval(valid, si.p, d)
+    d_out = refract_or_reflect(mi, d, si.n, ior, dr.full(mi.Float, 1.0, photons))
+    dr.eval(valid, si.p, d, d_out)
     keep = dr.compress(valid)
     p = _np(_take(mi.Point3f, si.p, keep))
     din = _np(_take(mi.Vector3f, d, keep))
+    dout = _np(_take(mi.Vector3f, d_out, keep))
     r_inner = np.hypot(inner_vertices[:, 0], inner_vertices[:, 1]).max()
     radius = np.hypot(p[:, 0], p[:, 1])
     on_outer = (radius > r_inner + 1e-3) & (p[:, 2] > 1e-3) & (p[:, 2] < cyl.height_mm - 1e-3)
-    p, din = p[on_outer], din[on_outer]
+    # Total internal reflection sends light back in: it reaches no wall from here.
+    on_outer &= np.einsum("ij,ij->i", dout, p * [1.0, 1.0, 0.0]) > 0
+    p, din, dout = p[on_outer], din[on_outer], dout[on_outer]
     iu = np.round(np.arctan2(p[:, 1], p[:, 0]) / (2 * np.pi / nu)).astype(np.int64) % nu
     iz = np.clip(np.round(p[:, 2] / cyl.height_mm * (nv - 1)).astype(np.int64), 0, nv - 1)
     cell = iu * nv + iz
     flux = np.bincount(cell, minlength=nu * nv) / photons
-    mean_d = np.stack([np.bincount(cell, weights=din[:, k], minlength=nu * nv) for k in range(3)], 1)
-    mean_d /= np.maximum(np.linalg.norm(mean_d, axis=1, keepdims=True), 1e-12)
-    return flux.reshape(nu, nv), mean_d.reshape(nu, nv, 3)
+
+    def mean_direction(d):
+        m = np.stack([np.bincount(cell, weights=d[:, k], minlength=nu * nv) for k in range(3)], 1)
+        return (m / np.maximum(np.linalg.norm(m, axis=1, keepdims=True), 1e-12)).reshape(nu, nv, 3)
+
+    return flux.reshape(nu, nv), mean_direction(din), mean_direction(dout)
 
 
 def sector_nodes(wall: Wall, nu: int) -> np.ndarray:
@@ -94,29 +106,74 @@ def orientation(wall: Wall) -> tuple[bool, bool]:
     return right_with_u, down_with_z
 
 
-def target_points(wall: Wall, flux: np.ndarray, target: np.ndarray, nodes: np.ndarray,
-                  eps_final: float) -> tuple[np.ndarray, float]:
-    """OT from the sector's node flux to the wall's target image.
+def _with_margin(target: np.ndarray, dump_share: float) -> tuple[np.ndarray, tuple[int, int]]:
+    """The target padded with a band holding ``dump_share`` of the total mass."""
+    rows, cols = target.shape
+    pad_r, pad_c = max(1, rows // 6), max(1, cols // 6)
+    total = target.sum()
+    out = np.pad(target / total * (1.0 - dump_share), ((pad_r, pad_r), (pad_c, pad_c)))
+    band = np.ones(out.shape, bool)
+    band[pad_r:-pad_r, pad_c:-pad_c] = False
+    out[band] = dump_share / band.sum()
+    return out, (pad_r, pad_c)
 
-    flux: (nu, nv) per node; target: (rows, cols) desired irradiance on the wall.
-    Returns ((len(nodes), nv, 3) float64 mm target point per node, OT marginal error).
+
+def _wall_angles(wall: Wall, light_mm: np.ndarray, cols: int, rows: int, pad_c: int = 0,
+                 pad_r: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Angles (rad) under which the light sees the centre lines of the wall's pixel
+    columns (across) and rows (down), each increasing with the image axis; ``pad_*``
+    more pixels of the same size continue the grid past each edge."""
+    centre_dir = _unit(wall.centre - light_mm)
+    across = _unit(wall.right - (wall.right @ centre_dir) * centre_dir)
+    down = _unit(wall.down - (wall.down @ centre_dir) * centre_dir)
+    a = (np.arange(-pad_c, cols + pad_c) + 0.5) / cols
+    b = (np.arange(-pad_r, rows + pad_r) + 0.5) / rows
+    d_a = wall.centre + (a[:, None] - 0.5) * wall.right - light_mm
+    d_b = wall.centre + (b[:, None] - 0.5) * wall.down - light_mm
+    return np.arctan2(d_a @ across, d_a @ centre_dir), np.arctan2(d_b @ down, d_b @ centre_dir)
+
+
+def target_points(wall: Wall, flux: np.ndarray, d_plain: np.ndarray, target: np.ndarray,
+                  nodes: np.ndarray, light_mm: np.ndarray, eps_final: float,
+                  dump_share: float) -> tuple[np.ndarray, float]:
+    """OT from the sector's node flux to the wall's target image, in angles.
+
+    Both sides are laid out in the same units (radians of direction as seen from the
+    light), so the quadratic cost is isotropic and the transport map is, like a
+    refracting surface's deflection field, close to a gradient: the least-squares
+    integration then has little curl to throw away.  flux (nu, nv), d_plain (nu, nv, 3):
+    where each node's light goes through the plain cylinder; target (rows, cols).
+    A band around the rectangle takes ``dump_share`` of the light: light that cannot
+    reach the image with a makeable slope (a letterboxed image is narrower than its
+    90° sector) is sent just past the rectangle's edge rather than into its dark parts.
+    Returns ((len(nodes), nv, 3) mm target point per node, OT marginal error).
     """
     src = flux[nodes]  # (n1, nv), u increasing
     right_with_u, down_with_z = orientation(wall)
+    ordered = d_plain[nodes]
     if not right_with_u:
-        src = src[::-1]
+        src, ordered = src[::-1], ordered[::-1]
     if not down_with_z:
-        src = src[:, ::-1]
+        src, ordered = src[:, ::-1], ordered[:, ::-1]
     n1, n2 = src.shape
+    target, (pad_r, pad_c) = _with_margin(target, dump_share)
     rows, cols = target.shape
-    x1 = (np.arange(n1) + 0.5) / n1
-    x2 = (np.arange(n2) + 0.5) / n2
-    y1 = (np.arange(cols) + 0.5) / cols
-    y2 = (np.arange(rows) + 0.5) / rows
+    y1, y2 = _wall_angles(wall, light_mm, cols - 2 * pad_c, rows - 2 * pad_r, pad_c, pad_r)
+    # The sector's own angles: across, the u spacing; down, the plain lens's exit angle
+    # of each row (monotone in z), measured like the wall's.
+    centre_dir = _unit(wall.centre - light_mm)
+    down_axis = _unit(wall.down - (wall.down @ centre_dir) * centre_dir)
+    column = ordered[n1 // 2]
+    x2 = np.arctan2(column @ down_axis, column @ centre_dir)
+    x2 = np.maximum.accumulate(x2)  # guard against noise in near-empty rows
+    x1 = (np.arange(n1) + 0.5 - n1 / 2) * (np.radians(SECTOR_WIDTH_DEG) / n1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # log(0) for black cells is meant
-        a_map, b_map, err = ot.barycentric_map(src + 1e-9 * src.max(), target.T, x1, x2, y1, y2,
-                                               eps_final)
+        ang1, ang2, err = ot.barycentric_map(src + 1e-9 * src.max(), target.T, x1 - y1.min() + 1.0,
+                                             x2 - y2.min() + 1.0, y1 - y1.min() + 1.0, y2 - y2.min() + 1.0,
+                                             eps_final)
+    a_map = np.interp(ang1 - 1.0 + y1.min(), y1, (np.arange(cols) + 0.5 - pad_c) / (cols - 2 * pad_c))
+    b_map = np.interp(ang2 - 1.0 + y2.min(), y2, (np.arange(rows) + 0.5 - pad_r) / (rows - 2 * pad_r))
     if not right_with_u:
         a_map, b_map = a_map[::-1], b_map[::-1]
     if not down_with_z:
@@ -202,47 +259,161 @@ def integrate_normals(cyl: surface.Cylinder, normals: np.ndarray, heights: np.nd
 def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
            inner_vertices: np.ndarray, inner_faces: np.ndarray, light_mm: np.ndarray,
            ior: float, grid: tuple[int, int], tessellation: int, rounds: int, photons: int,
-           smoothness: float, max_offset_mm: float, max_tilt_deg: float, seed: int, log=print) -> tuple[np.ndarray, dict]:
+           smoothness: float, max_offset_mm: float, max_tilt_deg: float, seed: int,
+           corrections: int = 3, dump_share: float = 0.2, log=print) -> tuple[np.ndarray, dict]:
     """The transport-based initial heightmap on a ``grid`` = (nu, nv) node grid.
 
-    targets: per wall (rows, cols) linear luminance.  Returns ((nu, nv) mm offsets,
-    figures).  Offsets are clipped to ±max_offset_mm (the clip is reported).
+    targets: per wall (rows, cols) linear luminance.  After ``rounds`` of
+    position/normal iteration, ``corrections`` times: trace the tessellated surface,
+    compare where each node's light really goes with where it should, and aim the
+    normals past the error (this absorbs the least-squares residual of a field of
+    normals that no surface has exactly, the slope clamp and the facets).
+    Returns ((nu, nv) mm offsets, figures).  Offsets are clipped to ±max_offset_mm.
     """
     nu, nv = grid
     heights = np.zeros(grid)
-    flux, d_in = source_density(cyl, heights, tessellation, inner_vertices, inner_faces, light_mm,
-                                ior, photons, seed)
-    goal = np.full((nu, nv, 3), np.nan)
-    weights = np.full(grid, UNASSIGNED_WEIGHT)
+    flux, d_in, d_plain = node_light(cyl, heights, tessellation, inner_vertices, inner_faces, light_mm,
+                                     ior, photons, seed)
     figures = {"ot_marginal_error": {}}
-    eps_final = (1.0 / max(nv, 16)) ** 2
+    # Light that no makeable slope can bring onto a wall is left alone (it lights the
+    # ceiling or floor) instead of being forced into steep, missing slopes.
+    deflection = REACH_MARGIN * max_deflection_deg(ior, max_tilt_deg)
+    plain_points = surface.points(cyl, heights)
+    usable = np.zeros((nu, nv), bool)
+    for wall in walls:
+        nodes = sector_nodes(wall, nu)
+        usable[nodes] = reachable(wall, plain_points[nodes], d_plain[nodes], deflection)
+    figures["usable_node_share"] = float(usable.mean())
+    u = np.arange(nu) * (2 * np.pi / nu)
+    radial = np.broadcast_to(np.stack([np.cos(u), np.sin(u), np.zeros(nu)], 1)[:, None, :], (nu, nv, 3))
+    aim_offset = np.zeros((nu, nv, 3))
+    change = 0.0
+    errors = []
+    for correction in range(corrections + 1):
+        # Where each node's light should go.  Redone every pass: as the surface moves,
+        # the light each node catches moves with it.
+        goal, weights = _goals(walls, targets, flux, d_plain, usable, light_mm, dump_share, figures, nu, nv)
+        # Nodes that send to no wall stay a plain cylinder (radial normals): bending
+        # their light anywhere useful is not asked for, and a sphere around the LED
+        # would cost tens of millimetres of sag.
+        unassigned = np.isnan(goal[..., 0])
+        for _ in range(rounds):
+            pts = surface.points(cyl, heights)
+            wanted = _unit(np.where(unassigned[..., None], d_in, goal - pts))
+            d_out = _unit(wanted + aim_offset)
+            normals = np.where(unassigned[..., None], radial, snell_normals(d_in, d_out, ior))
+            new = integrate_normals(cyl, normals, heights, weights, smoothness, max_tilt_deg)
+            change = float(np.abs(new - heights).max())
+            heights = new
+        flux, d_in, d_actual = node_light(cyl, np.clip(heights, -max_offset_mm, max_offset_mm), tessellation,
+                                          inner_vertices, inner_faces, light_mm, ior, photons,
+                                          seed + correction + 1)
+        lit = (~unassigned) & (flux > 0)
+        miss = np.degrees(np.arccos(np.clip(np.sum(wanted * d_actual, -1), -1, 1)))
+        errors.append(float(np.average(miss[lit], weights=flux[lit])))
+        log(f"transport: pass {correction + 1}/{corrections + 1}: offsets {heights.min():.2f} to "
+            f"{heights.max():.2f} mm, mean aim error {errors[-1]:.2f}°")
+        aim_offset = np.where(lit[..., None], aim_offset + (wanted - d_actual), aim_offset)
+    heights, max_tilt = limit_slopes(cyl, heights, max_tilt_deg)
+    clipped = float(np.mean(np.abs(heights) > max_offset_mm))
+    heights = np.clip(heights, -max_offset_mm, max_offset_mm)
+    figures.update(offset_min_mm=float(heights.min()), offset_max_mm=float(heights.max()),
+                   clipped_fraction=clipped, last_change_mm=change, grid=list(grid),
+                   aim_error_deg=errors, max_tilt_deg=max_tilt)
+    return heights, figures
+
+
+def max_deflection_deg(ior: float, max_tilt_deg: float) -> float:
+    """How far a surface tilted at most ``max_tilt_deg`` can bend light leaving glass
+    (light arriving along the radial direction)."""
+    tilt = np.radians(max_tilt_deg)
+    s = min(ior * np.sin(tilt), 1.0)
+    return float(np.degrees(np.arcsin(s) - tilt))
+
+
+def reachable(wall: Wall, points: np.ndarray, d_plain: np.ndarray, max_deflection: float) -> np.ndarray:
+    """Which nodes can send their light into the wall's rectangle.
+
+    points (..., 3) mm on the surface, d_plain (..., 3): where their light goes through
+    the plain cylinder.  A node is reachable if the rectangle's nearest point is within
+    ``max_deflection`` degrees of that direction.
+    """
+    normal = wall.normal
+    denom = d_plain @ normal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = ((wall.origin - points) @ normal) / denom
+    hit = points + np.where(denom < 0, t, 1e6)[..., None] * d_plain
+    rel = hit - wall.origin
+    a = np.clip(rel @ wall.right / wall.width_mm**2, 0, 1)
+    b = np.clip(rel @ wall.down / wall.height_mm**2, 0, 1)
+    nearest = wall.origin + a[..., None] * wall.right + b[..., None] * wall.down
+    to_nearest = _unit(nearest - points)
+    angle = np.degrees(np.arccos(np.clip(np.sum(to_nearest * d_plain, -1), -1, 1)))
+    return (denom < 0) & (angle <= max_deflection)
+
+
+def surface_normals(cyl: surface.Cylinder, heights: np.ndarray) -> np.ndarray:
+    """(nu, nv, 3) outward unit normals of the spline surface at its nodes."""
+    nu, nv = heights.shape
+    du = 2 * np.pi / nu
+    dz = cyl.height_mm / (nv - 1)
+    r = cyl.radius_mm + heights
+    r_u = (np.roll(heights, -1, 0) - np.roll(heights, 1, 0)) / (2 * du)
+    r_z = np.gradient(heights, dz, axis=1)
+    u = np.arange(nu) * du
+    e_r = np.stack([np.cos(u), np.sin(u), np.zeros(nu)], 1)[:, None, :]
+    e_t = np.stack([-np.sin(u), np.cos(u), np.zeros(nu)], 1)[:, None, :]
+    n = e_r - (r_u / r)[..., None] * e_t - r_z[..., None] * np.array([0.0, 0.0, 1.0])
+    return _unit(n)
+
+
+def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float,
+                 passes: int = 12) -> tuple[np.ndarray, float]:
+    """The nearest surface (least squares on slopes) whose spline tilts at most
+    ``max_tilt_deg`` against the radial direction, measured between the nodes too.
+
+    Clamps the surface's own slope field and re-integrates, with the clamp tightened
+    while the spline still overshoots.  Returns (heights (nu, nv) mm, max tilt deg).
+    """
+    nu, nv = heights.shape
+    fine = (2 * nu, 2 * (nv - 1) + 1)
+    clamp = max_tilt_deg
+    tilt = surface.slopes_deg(cyl, heights, *fine)[0].max()
+    for _ in range(passes):
+        if tilt <= max_tilt_deg:
+            break
+        clamp -= 0.5 * (tilt - max_tilt_deg) + 0.25
+        mean = heights.mean()
+        heights = integrate_normals(cyl, surface_normals(cyl, heights), heights, np.ones((nu, nv)), 0.0, clamp)
+        heights += mean - heights.mean()
+        tilt = surface.slopes_deg(cyl, heights, *fine)[0].max()
+    return heights, float(tilt)
+
+
+def _goals(walls, targets, flux, d_plain, usable, light_mm, dump_share, figures, nu, nv):
+    """Target point per node ((nu, nv, 3) mm, NaN where no wall) and least-squares weights.
+
+    usable (nu, nv) bool: nodes whose light can reach their wall at all."""
+    goal = np.full((nu, nv, 3), np.nan)
+    weights = np.full((nu, nv), UNASSIGNED_WEIGHT)
+    # Blur of about one node spacing (rad^2): sharp, yet smooth enough to integrate.
+    eps_final = (np.radians(SECTOR_WIDTH_DEG) / (nu / 4)) ** 2
     for wall, target in zip(walls, targets):
         nodes = sector_nodes(wall, nu)
-        points, err = target_points(wall, flux, target, nodes, eps_final)
+        ok = usable[nodes]
+        points, err = target_points(wall, np.where(usable, flux, 0.0), d_plain, target, nodes, light_mm,
+                                    eps_final, dump_share)
+        points[~ok] = np.nan
         goal[nodes] = points
         # Nodes matter as much as the light they carry (dim nodes near the caps would
         # otherwise demand steep slopes for little light).
         share = flux[nodes] / max(flux[nodes].mean(), 1e-300)
         weights[nodes] = np.clip(share, UNASSIGNED_WEIGHT, 1.0)
         figures["ot_marginal_error"][wall.name] = err
-    # Nodes that send to no wall stay a plain cylinder (radial normals): bending their
-    # light anywhere useful is not asked for, and a sphere around the LED would cost
-    # tens of millimetres of sag.
-    unassigned = np.isnan(goal[..., 0])
-    u = np.arange(nu) * (2 * np.pi / nu)
-    radial = np.broadcast_to(np.stack([np.cos(u), np.sin(u), np.zeros(nu)], 1)[:, None, :], goal.shape)
-    for k in range(rounds):
-        pts = surface.points(cyl, heights)
-        d_out = np.where(unassigned[..., None], d_in, goal - pts)
-        d_out /= np.linalg.norm(d_out, axis=-1, keepdims=True)
-        normals = np.where(unassigned[..., None], radial, snell_normals(d_in, d_out, ior))
-        new = integrate_normals(cyl, normals, heights, weights, smoothness, max_tilt_deg)
-        change = float(np.abs(new - heights).max())
-        heights = new
-        log(f"transport round {k + 1}/{rounds}: offsets {heights.min():.2f} to {heights.max():.2f} mm, "
-            f"change {change:.3f} mm")
-    clipped = float(np.mean(np.abs(heights) > max_offset_mm))
-    heights = np.clip(heights, -max_offset_mm, max_offset_mm)
-    figures.update(offset_min_mm=float(heights.min()), offset_max_mm=float(heights.max()),
-                   clipped_fraction=clipped, last_change_mm=change, grid=list(grid))
-    return heights, figures
+    return goal, weights
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    """Unit vectors along the last axis (NaN rows, nodes without a goal, stay NaN)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return v / np.linalg.norm(v, axis=-1, keepdims=True)

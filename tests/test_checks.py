@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from lampfab import checks, surface
-from lampfab.checks_geometry import (closest_on_triangles, compute_fields, distance_to_mesh,
-                                     open_deriv, periodic_deriv)
+from lampfab.checks_distance import closest_on_triangles, distance_to_mesh
+from lampfab.checks_geometry import compute_fields, open_deriv, periodic_deriv
 from lampfab.profile import Fabrication, load_fabrication
 
 m3 = pytest.importorskip("manifold3d")
