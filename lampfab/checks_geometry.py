@@ -10,60 +10,11 @@ Units: mm, rad inside, degrees where a name says ``deg``.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
 from . import surface
 from .checks_distance import distance_to_mesh
-
-
-@lru_cache(maxsize=16)
-def periodic_deriv(n: int, m: int, d: int) -> np.ndarray:
-    """(m, n) float64: nodes -> d-th derivative (per rad^d) of the periodic spline in u.
-
-    The periodic cubic interpolant at uniform nodes is unique, so this is the spline of
-    ``surface.periodic_matrix`` (equal to rounding for d = 0).  Built from uniform cubic
-    B-splines: coefficients c solve the circulant system (c[i-1] + 4 c[i] + c[i+1]) / 6 =
-    y[i], inverted by FFT.  scipy's periodic ``make_interp_spline`` solves one Woodbury
-    system per column: 1.1 s for (256, 1024), this takes milliseconds.
-    """
-    h = 2 * np.pi / n
-    t = np.arange(m) * (n / m)                               # sample positions in knot units
-    j = np.floor(t + 1e-12).astype(np.int64)
-    f = t - j
-    if d == 0:
-        w = [(1 - f) ** 3 / 6, (3 * f**3 - 6 * f**2 + 4) / 6, (-3 * f**3 + 3 * f**2 + 3 * f + 1) / 6, f**3 / 6]
-    elif d == 1:
-        w = [-(1 - f) ** 2 / 2, 1.5 * f**2 - 2 * f, -1.5 * f**2 + f + 0.5, f**2 / 2]
-    elif d == 2:
-        w = [1 - f, 3 * f - 2, 1 - 3 * f, f]
-    else:
-        raise ValueError("derivative order 0..2")
-    basis = np.zeros((m, n))
-    rows = np.arange(m)
-    for off, wk in zip((-1, 0, 1, 2), w):
-        np.add.at(basis, (rows, (j + off) % n), wk / h**d)
-    lam = (4 + 2 * np.cos(2 * np.pi * np.arange(n) / n)) / 6
-    col = np.real(np.fft.ifft(1.0 / lam))                    # first column of the inverse
-    inv = col[(np.arange(n)[:, None] - np.arange(n)[None, :]) % n]
-    return basis @ inv
-
-
-@lru_cache(maxsize=16)
-def open_deriv(n: int, m: int, d: int, height_mm: float) -> np.ndarray:
-    """(m, n) float64: nodes -> d-th derivative (per mm^d) of the not-a-knot spline in z.
-
-    ``surface.open_matrix`` works on v in [0, 1]; z = H*v, so d/dz = (1/H) d/dv.
-    """
-    from scipy.interpolate import make_interp_spline
-
-    x = np.linspace(0.0, 1.0, n)
-    k = 3 if n >= 4 else n - 1
-    spline = make_interp_spline(x, np.eye(n), k=k)
-    if d > k:
-        return np.zeros((m, n))
-    return spline(np.linspace(0.0, 1.0, m), nu=d) / height_mm**d
 
 
 @dataclass
@@ -108,8 +59,8 @@ def compute_fields(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: n
     nu, nv = heights.shape
     mu, mv = max(samples[0], 2 * nu), max(samples[1], 2 * nv)
     H = cyl.height_mm
-    pu = [periodic_deriv(nu, mu, d) for d in range(3)]
-    pz = [open_deriv(nv, mv, d, float(H)) for d in range(3)]
+    pu = [surface.periodic_matrix(nu, mu, d) for d in range(3)]
+    pz = [surface.open_matrix(nv, mv, d) / H**d for d in range(3)]
     # Radius and its derivatives from the spline itself (exact, no finite differences):
     # curvature needs second derivatives, which differencing would make noisy.
     s = pu[0] @ heights @ pz[0].T

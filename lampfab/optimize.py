@@ -74,7 +74,9 @@ class Interrupted(Exception):
     """SIGINT/SIGTERM arrived; the state was checkpointed."""
 
 
-class SeedOptimizer:
+class Optimizer:
+    """The loop every method shares; a method supplies ``gradient`` and ``render``."""
+
     def __init__(self, cyl: surface.Cylinder, inner_vertices: np.ndarray, inner_faces: np.ndarray,
                  light_mm: np.ndarray, ior: float, walls: list[Wall], targets: list[np.ndarray],
                  opt: Optimize, max_offset_mm: float, max_tilt_deg: float):
@@ -86,62 +88,13 @@ class SeedOptimizer:
         self.max_tilt = max_tilt_deg
         self._scene_grid = None
 
-    # -- scene --------------------------------------------------------------------
-    def _mesh(self, heights):
-        return lens.optical_mesh(self.cyl, heights, self.opt.tessellation, self.inner_v, self.inner_f)
-
-    def _ensure_scene(self, heights: np.ndarray) -> None:
-        if self._scene_grid == heights.shape:
-            return
-        verts, faces = self._mesh(heights)
-        self.scene, self.params, self.key = scene.build(verts, faces, self.light, self.ior, self.walls,
-                                                        self.shapes, self.opt.spp)
-        self.static = verts  # inner layer and cap centres never move
-        self.fine = surface.fine_shape(*heights.shape, self.opt.tessellation)
-        self.radial = surface.radial_dirs(*self.fine)
-        self._scene_grid = heights.shape
-
-    def _set_heights(self, heights: np.ndarray) -> None:
-        mi = scene.mitsuba()
-        verts, _ = self._mesh(heights)
-        self.params[self.key] = mi.Float(verts.astype(np.float32).ravel())
-        self.params.update()
-
-    def render(self, heights: np.ndarray, view: int, seed: int, spp: int | None = None) -> np.ndarray:
-        """A (rows, cols) float64 ptracer image of one wall, no gradient."""
-        mi = scene.mitsuba()
-        self._ensure_scene(heights)
-        self._set_heights(heights)
-        img = mi.render(self.scene, self.params, sensor=view, spp=spp or self.opt.spp, seed=seed)
-        return np.array(img, dtype=np.float64)[..., 0]
-
     def gradient(self, heights: np.ndarray, views: list[int], seed: int) -> tuple[float, np.ndarray]:
-        """Loss over ``views`` and its gradient on the heightmap nodes (nu, nv)."""
-        import drjit as dr
+        """Loss over ``views`` and its gradient on the full-resolution nodes (nu, nv)."""
+        raise NotImplementedError
 
-        mi = scene.mitsuba()
-        self._ensure_scene(heights)
-        self._set_heights(heights)
-        positions = self.params[self.key]
-        dr.enable_grad(positions)
-        self.params.update()
-        total = 0.0
-        grad_vertices = np.zeros(dr.width(positions))
-        weights = self.opt.loss_weights or (1.0,) * len(self.walls)
-        for view in views:
-            img = mi.render(self.scene, self.params, sensor=view, spp=self.opt.spp, seed=seed + view,
-                            seed_grad=seed + view + 7919)
-            target = mi.TensorXf(self.targets[view][..., None].astype(np.float32))
-            loss = losses.view_loss(self.opt.loss, img, target, dr.mean, weights[view])
-            dr.backward(loss)
-            total += float(np.asarray(loss).ravel()[0])
-            grad_vertices += dr.grad(positions).numpy()
-            dr.clear_grad(positions)
-        dr.disable_grad(positions)
-        mu, mv = self.fine
-        g = grad_vertices.reshape(-1, 3)[: mu * mv]
-        g_fine = np.einsum("ij,ij->i", g, self.radial).reshape(mu, mv)
-        return total, surface.sample_adjoint(g_fine, *heights.shape)
+    def render(self, heights: np.ndarray, view: int, seed: int) -> np.ndarray:
+        """A (rows, cols) preview of one wall."""
+        raise NotImplementedError
 
     def makeable(self, heights: np.ndarray) -> np.ndarray:
         """Project a step back into what the fabrication profile allows (slopes, offsets)."""
@@ -152,8 +105,12 @@ class SeedOptimizer:
 
     # -- loop ---------------------------------------------------------------------
     def step_delta(self, state: State, grad: np.ndarray) -> np.ndarray:
-        """The step on the level's grid (mm), by plain gradient descent or Adam."""
-        lr = self.opt.learning_rate * state.lr_scale
+        """The step on the level's grid (mm), by plain gradient descent or Adam.
+
+        ``learning_rate`` is for the coarsest level; finer levels step in proportion to
+        their node spacing, so every level tilts the surface by as much per step."""
+        spacing = grad.shape[0] / (self.opt.grid_u // 4 ** (self.opt.levels - 1))
+        lr = self.opt.learning_rate * state.lr_scale / spacing
         if self.opt.step == "gd":
             return -lr * grad
         b1, b2, eps = 0.9, 0.999, 1e-12
@@ -222,3 +179,65 @@ class SeedOptimizer:
             for s, h in old.items():
                 signal.signal(s, h)
         return state
+
+
+class SeedOptimizer(Optimizer):
+    """The source's method: Mitsuba ``ptracer`` renders one sensor per wall, Dr.Jit
+    differentiates the loss with respect to the outer vertices."""
+
+    # -- scene --------------------------------------------------------------------
+    def _mesh(self, heights):
+        return lens.optical_mesh(self.cyl, heights, self.opt.tessellation, self.inner_v, self.inner_f)
+
+    def _ensure_scene(self, heights: np.ndarray) -> None:
+        if self._scene_grid == heights.shape:
+            return
+        verts, faces = self._mesh(heights)
+        self.scene, self.params, self.key = scene.build(verts, faces, self.light, self.ior, self.walls,
+                                                        self.shapes, self.opt.spp)
+        self.static = verts  # inner layer and cap centres never move
+        self.fine = surface.fine_shape(*heights.shape, self.opt.tessellation)
+        self.radial = surface.radial_dirs(*self.fine)
+        self._scene_grid = heights.shape
+
+    def _set_heights(self, heights: np.ndarray) -> None:
+        mi = scene.mitsuba()
+        verts, _ = self._mesh(heights)
+        self.params[self.key] = mi.Float(verts.astype(np.float32).ravel())
+        self.params.update()
+
+    def render(self, heights: np.ndarray, view: int, seed: int, spp: int | None = None) -> np.ndarray:
+        """A (rows, cols) float64 ptracer image of one wall, no gradient."""
+        mi = scene.mitsuba()
+        self._ensure_scene(heights)
+        self._set_heights(heights)
+        img = mi.render(self.scene, self.params, sensor=view, spp=spp or self.opt.spp, seed=seed)
+        return np.array(img, dtype=np.float64)[..., 0]
+
+    def gradient(self, heights: np.ndarray, views: list[int], seed: int) -> tuple[float, np.ndarray]:
+        """Loss over ``views`` and its gradient on the heightmap nodes (nu, nv)."""
+        import drjit as dr
+
+        mi = scene.mitsuba()
+        self._ensure_scene(heights)
+        self._set_heights(heights)
+        positions = self.params[self.key]
+        dr.enable_grad(positions)
+        self.params.update()
+        total = 0.0
+        grad_vertices = np.zeros(dr.width(positions))
+        weights = self.opt.loss_weights or (1.0,) * len(self.walls)
+        for view in views:
+            img = mi.render(self.scene, self.params, sensor=view, spp=self.opt.spp, seed=seed + view,
+                            seed_grad=seed + view + 7919)
+            target = mi.TensorXf(self.targets[view][..., None].astype(np.float32))
+            loss = losses.view_loss(self.opt.loss, img, target, dr.mean, weights[view])
+            dr.backward(loss)
+            total += float(np.asarray(loss).ravel()[0])
+            grad_vertices += dr.grad(positions).numpy()
+            dr.clear_grad(positions)
+        dr.disable_grad(positions)
+        mu, mv = self.fine
+        g = grad_vertices.reshape(-1, 3)[: mu * mv]
+        g_fine = np.einsum("ij,ij->i", g, self.radial).reshape(mu, mv)
+        return total, surface.sample_adjoint(g_fine, *heights.shape)

@@ -27,16 +27,18 @@ def _log(mass: np.ndarray) -> np.ndarray:
 
 
 def barycentric_map(source: np.ndarray, target: np.ndarray, x1: np.ndarray, x2: np.ndarray,
-                    y1: np.ndarray, y2: np.ndarray, eps_final: float,
-                    iterations: int = 40) -> tuple[np.ndarray, np.ndarray, float]:
+                    y1: np.ndarray, y2: np.ndarray, eps_final: float, iterations: int = 40,
+                    warm: tuple[np.ndarray, np.ndarray] | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, float, tuple[np.ndarray, np.ndarray]]:
     """Where each source cell's light should go.
 
     source (n1, n2) and target (m1, m2) are non-negative masses (normalized here);
     x1 (n1,), x2 (n2,), y1 (m1,), y2 (m2,) are the grids' coordinates.  Solves the
     entropic OT problem with blur ``eps_final`` (annealed from a large blur for speed)
     and returns the barycentric projection of the plan: ((n1, n2) y1-coordinate,
-    (n1, n2) y2-coordinate, marginal error of the target side).  Cells without mass
-    also get a map (from the target potential), so a surface built from it is smooth.
+    (n1, n2) y2-coordinate, marginal error of the target side, potentials (f, g)).
+    Cells without mass also get a map (from the target potential), so a surface built
+    from it is smooth.  ``warm`` potentials of a similar problem skip the annealing.
     """
     a = source / source.sum()
     b = target / target.sum()
@@ -45,7 +47,10 @@ def barycentric_map(source: np.ndarray, target: np.ndarray, x1: np.ndarray, x2: 
     c2 = (x2[:, None] - y2[None, :]) ** 2
     f = np.zeros_like(a)
     g = np.zeros_like(b)
-    eps = 0.1  # the grids span [0, 1]: a blur of 0.1 is already nearly uniform
+    eps = 0.1  # the grids span about 1: a blur of 0.1 is already nearly uniform
+    if warm is not None and warm[1].shape == b.shape:
+        g = warm[1]
+        eps = eps_final
     while True:
         steps = iterations if eps <= eps_final else 8
         for _ in range(steps):
@@ -59,4 +64,4 @@ def barycentric_map(source: np.ndarray, target: np.ndarray, x1: np.ndarray, x2: 
     base = _apply(g / eps, c1, c2, eps)
     y1_map = np.exp(_apply(g / eps + np.log(y1)[:, None], c1, c2, eps) - base)
     y2_map = np.exp(_apply(g / eps + np.log(y2)[None, :], c1, c2, eps) - base)
-    return y1_map, y2_map, marginal_error
+    return y1_map, y2_map, marginal_error, (f, g)

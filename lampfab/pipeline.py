@@ -210,7 +210,8 @@ def init(build: Build) -> dict:
 
 # -- 3b. optimize (the source's method) ---------------------------------------------------
 def optimize(build: Build) -> dict:
-    """Refine the initial lens with Mitsuba ptracer gradients; resumes from a checkpoint."""
+    """Refine the initial lens by gradient descent through a differentiable renderer
+    (``splat``, or the source's ``seed`` ptracer); resumes from a checkpoint."""
     from tqdm import tqdm
 
     from . import optimize as opt_mod
@@ -224,8 +225,11 @@ def optimize(build: Build) -> dict:
                            f"({opt.grid_u}, {opt.grid_v}); re-run init")
     iv, if_ = build.inner()
     targets = build.targets(opt.sensor_px)
-    seed_opt = opt_mod.SeedOptimizer(build.cylinder, iv, if_, build.light, build.fab.ior, build.walls,
-                                     targets, opt, d.lens.max_offset_mm, build.fab.max_slope_deg)
+    from .splat import SplatOptimizer
+
+    method = {"seed": opt_mod.SeedOptimizer, "splat": SplatOptimizer}[opt.method]
+    seed_opt = method(build.cylinder, iv, if_, build.light, build.fab.ior, build.walls, targets, opt,
+                      d.lens.max_offset_mm, build.fab.max_slope_deg)
     checkpoint = build.path("checkpoint.npz")
     state = opt_mod.State(init_heights.copy(), 0, 0)
     resumed = False

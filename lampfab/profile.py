@@ -48,7 +48,8 @@ class Room:
 @dataclass(frozen=True)
 class Optimize:
     init: str = _spec("transport", choices=("transport", "cylinder"), doc="first design")
-    method: str = _spec("seed", choices=("seed",), doc="differentiable refinement (source's ptracer)")
+    method: str = _spec("splat", choices=("splat", "seed"),
+                        doc="refinement: photon splatting (fast) or the source's ptracer")
     grid_u: int = _spec(256, 8, 8192, doc="heightmap nodes around (final level)")
     grid_v: int = _spec(64, 4, 4096, doc="heightmap nodes up (final level)")
     levels: int = _spec(2, 1, 4, doc="coarse-to-fine levels, x4 in u and v between levels")
@@ -59,7 +60,8 @@ class Optimize:
     step: str = _spec("adam", choices=("adam", "gd"), doc="update rule")
     learning_rate: float = _spec(0.02, 1e-8, 100.0, doc="mm per step scale")
     sensor_px: int = _spec(64, 8, 2048, doc="sensor width in pixels (height from the aspect)")
-    spp: int = _spec(16, 1, 65536, doc="ptracer samples per pixel per step")
+    spp: int = _spec(16, 1, 65536, doc="ptracer samples per pixel per step (seed)")
+    splat_photons: int = _spec(1_000_000, 1000, 100_000_000, doc="photons per step (splat)")
     tessellation: int = _spec(4, 1, 16, doc="mesh vertices per heightmap cell edge (the STL uses the same)")
     transport_rounds: int = _spec(4, 1, 20, doc="position/normal rounds of the transport init")
     transport_photons: int = _spec(2_000_000, 10_000, 100_000_000, doc="photons for the source density")

@@ -21,36 +21,48 @@ import numpy as np
 
 
 @lru_cache(maxsize=32)
-def periodic_matrix(n: int, m: int) -> np.ndarray:
-    """(m, n) float64: values at n periodic nodes -> periodic cubic spline at m samples.
+def periodic_matrix(n: int, m: int, d: int = 0) -> np.ndarray:
+    """(m, n) float64: values at n periodic nodes -> d-th derivative (per radian^d) of
+    the periodic cubic spline through them, at m samples.
 
     Nodes at 2*pi*i/n, samples at 2*pi*k/m.  Uniform cubic B-spline: the control
     points solve the circulant system (c[i-1] + 4 c[i] + c[i+1]) / 6 = y[i] (by FFT),
-    then each sample mixes four control points with the B-spline weights.
+    then each sample mixes four control points with the B-spline weights (or their
+    derivatives).
     """
-    stencil = np.zeros(n)
-    stencil[[0, 1, -1]] = [4 / 6, 1 / 6, 1 / 6]
-    inverse = np.real(np.fft.ifft(1.0 / np.fft.fft(stencil)))
-    solve = np.stack([np.roll(inverse, i) for i in range(n)], 1)  # circulant inverse
+    step = 2 * np.pi / n
     t = np.arange(m) * (n / m)
-    base = np.floor(t).astype(np.int64)
-    f = t - base
-    weights = np.stack([(1 - f) ** 3, 3 * f**3 - 6 * f**2 + 4, -3 * f**3 + 3 * f**2 + 3 * f + 1, f**3], 1) / 6
+    j = np.floor(t + 1e-12).astype(np.int64)
+    f = t - j
+    if d == 0:
+        w = [(1 - f) ** 3 / 6, (3 * f**3 - 6 * f**2 + 4) / 6, (-3 * f**3 + 3 * f**2 + 3 * f + 1) / 6, f**3 / 6]
+    elif d == 1:
+        w = [-(1 - f) ** 2 / 2, 1.5 * f**2 - 2 * f, -1.5 * f**2 + f + 0.5, f**2 / 2]
+    elif d == 2:
+        w = [1 - f, 3 * f - 2, 1 - 3 * f, f]
+    else:
+        raise ValueError("derivative order 0..2")
     basis = np.zeros((m, n))
-    for k in range(4):
-        np.add.at(basis, (np.arange(m), (base + k - 1) % n), weights[:, k])
-    return basis @ solve
+    rows = np.arange(m)
+    for off, wk in zip((-1, 0, 1, 2), w):
+        np.add.at(basis, (rows, (j + off) % n), wk / step**d)
+    eigen = (4 + 2 * np.cos(2 * np.pi * np.arange(n) / n)) / 6
+    col = np.real(np.fft.ifft(1.0 / eigen))  # first column of the circulant inverse
+    return basis @ col[(np.arange(n)[:, None] - np.arange(n)[None, :]) % n]
 
 
 @lru_cache(maxsize=32)
-def open_matrix(n: int, m: int) -> np.ndarray:
-    """(m, n) float64: values at n nodes on [0, 1] -> not-a-knot cubic spline at m samples."""
+def open_matrix(n: int, m: int, d: int = 0) -> np.ndarray:
+    """(m, n) float64: values at n nodes on [0, 1] -> d-th derivative (per unit^d) of
+    the not-a-knot cubic spline through them, at m samples (ends included)."""
     from scipy.interpolate import make_interp_spline
 
     x = np.linspace(0.0, 1.0, n)
     k = 3 if n >= 4 else n - 1
+    if d > k:
+        return np.zeros((m, n))
     spline = make_interp_spline(x, np.eye(n), k=k)
-    return spline(np.linspace(0.0, 1.0, m))
+    return spline(np.linspace(0.0, 1.0, m), nu=d)
 
 
 @dataclass(frozen=True)
@@ -155,16 +167,15 @@ def closed_outer_mesh(cyl: Cylinder, heights: np.ndarray, tessellation: int) -> 
 
 
 def slopes_deg(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int) -> tuple[np.ndarray, np.ndarray]:
-    """Angle between the surface normal and the radial direction, and its (u, z) parts.
+    """Angle between the surface normal and the radial direction, from the spline's
+    exact derivatives, and its part along z.
 
     Returns ((mu, mv) float64 deg total tilt, (mu, mv) float64 deg tilt along z).
     """
-    fine = sample(heights, mu, mv)
-    r = cyl.radius_mm + fine
-    du = 2 * np.pi / mu
-    dz = cyl.height_mm / (mv - 1)
-    dr_du = (np.roll(fine, -1, 0) - np.roll(fine, 1, 0)) / (2 * du)
-    dr_dz = np.gradient(fine, dz, axis=1)
-    tan_u = dr_du / r
-    tilt = np.degrees(np.arctan(np.hypot(tan_u, dr_dz)))
-    return tilt, np.degrees(np.arctan(np.abs(dr_dz)))
+    nu, nv = heights.shape
+    pz = open_matrix(nv, mv)
+    r = cyl.radius_mm + periodic_matrix(nu, mu) @ heights @ pz.T
+    r_u = periodic_matrix(nu, mu, 1) @ heights @ pz.T
+    r_z = periodic_matrix(nu, mu) @ heights @ open_matrix(nv, mv, 1).T / cyl.height_mm
+    tilt = np.degrees(np.arctan(np.hypot(r_u / r, r_z)))
+    return tilt, np.degrees(np.arctan(np.abs(r_z)))

@@ -135,7 +135,7 @@ def _wall_angles(wall: Wall, light_mm: np.ndarray, cols: int, rows: int, pad_c: 
 
 def target_points(wall: Wall, flux: np.ndarray, d_plain: np.ndarray, target: np.ndarray,
                   nodes: np.ndarray, light_mm: np.ndarray, eps_final: float,
-                  dump_share: float) -> tuple[np.ndarray, float]:
+                  dump_share: float, warm: dict) -> tuple[np.ndarray, float]:
     """OT from the sector's node flux to the wall's target image, in angles.
 
     Both sides are laid out in the same units (radians of direction as seen from the
@@ -146,6 +146,7 @@ def target_points(wall: Wall, flux: np.ndarray, d_plain: np.ndarray, target: np.
     A band around the rectangle takes ``dump_share`` of the light: light that cannot
     reach the image with a makeable slope (a letterboxed image is narrower than its
     90° sector) is sent just past the rectangle's edge rather than into its dark parts.
+    ``warm`` (wall name -> OT potentials) carries the solution from pass to pass.
     Returns ((len(nodes), nv, 3) mm target point per node, OT marginal error).
     """
     src = flux[nodes]  # (n1, nv), u increasing
@@ -169,9 +170,10 @@ def target_points(wall: Wall, flux: np.ndarray, d_plain: np.ndarray, target: np.
     x1 = (np.arange(n1) + 0.5 - n1 / 2) * (np.radians(SECTOR_WIDTH_DEG) / n1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # log(0) for black cells is meant
-        ang1, ang2, err = ot.barycentric_map(src + 1e-9 * src.max(), target.T, x1 - y1.min() + 1.0,
-                                             x2 - y2.min() + 1.0, y1 - y1.min() + 1.0, y2 - y2.min() + 1.0,
-                                             eps_final)
+        ang1, ang2, err, potentials = ot.barycentric_map(
+            src + 1e-9 * src.max(), target.T, x1 - y1.min() + 1.0, x2 - y2.min() + 1.0, y1 - y1.min() + 1.0,
+            y2 - y2.min() + 1.0, eps_final, warm=warm.get(wall.name))
+        warm[wall.name] = potentials
     a_map = np.interp(ang1 - 1.0 + y1.min(), y1, (np.arange(cols) + 0.5 - pad_c) / (cols - 2 * pad_c))
     b_map = np.interp(ang2 - 1.0 + y2.min(), y2, (np.arange(rows) + 0.5 - pad_r) / (rows - 2 * pad_r))
     if not right_with_u:
@@ -287,12 +289,13 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     u = np.arange(nu) * (2 * np.pi / nu)
     radial = np.broadcast_to(np.stack([np.cos(u), np.sin(u), np.zeros(nu)], 1)[:, None, :], (nu, nv, 3))
     aim_offset = np.zeros((nu, nv, 3))
+    warm: dict = {}
     change = 0.0
     errors = []
     for correction in range(corrections + 1):
         # Where each node's light should go.  Redone every pass: as the surface moves,
         # the light each node catches moves with it.
-        goal, weights = _goals(walls, targets, flux, d_plain, usable, light_mm, dump_share, figures, nu, nv)
+        goal, weights = _goals(walls, targets, flux, d_plain, usable, light_mm, dump_share, warm, figures, nu, nv)
         # Nodes that send to no wall stay a plain cylinder (radial normals): bending
         # their light anywhere useful is not asked for, and a sphere around the LED
         # would cost tens of millimetres of sag.
@@ -376,7 +379,7 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     while the spline still overshoots.  Returns (heights (nu, nv) mm, max tilt deg).
     """
     nu, nv = heights.shape
-    fine = (2 * nu, 2 * (nv - 1) + 1)
+    fine = surface.fine_shape(nu, nv, 4)  # as finely as the fabrication check samples it
     clamp = max_tilt_deg
     tilt = surface.slopes_deg(cyl, heights, *fine)[0].max()
     for _ in range(passes):
@@ -390,7 +393,7 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     return heights, float(tilt)
 
 
-def _goals(walls, targets, flux, d_plain, usable, light_mm, dump_share, figures, nu, nv):
+def _goals(walls, targets, flux, d_plain, usable, light_mm, dump_share, warm, figures, nu, nv):
     """Target point per node ((nu, nv, 3) mm, NaN where no wall) and least-squares weights.
 
     usable (nu, nv) bool: nodes whose light can reach their wall at all."""
@@ -402,7 +405,7 @@ def _goals(walls, targets, flux, d_plain, usable, light_mm, dump_share, figures,
         nodes = sector_nodes(wall, nu)
         ok = usable[nodes]
         points, err = target_points(wall, np.where(usable, flux, 0.0), d_plain, target, nodes, light_mm,
-                                    eps_final, dump_share)
+                                    eps_final, dump_share, warm)
         points[~ok] = np.nan
         goal[nodes] = points
         # Nodes matter as much as the light they carry (dim nodes near the caps would

@@ -14,7 +14,7 @@ import pytest
 
 from lampfab import checks, surface
 from lampfab.checks_distance import closest_on_triangles, distance_to_mesh
-from lampfab.checks_geometry import compute_fields, open_deriv, periodic_deriv
+from lampfab.checks_geometry import compute_fields
 from lampfab.profile import Fabrication, load_fabrication
 
 m3 = pytest.importorskip("manifold3d")
@@ -350,13 +350,13 @@ def test_closest_on_triangles_against_dense_sampling():
         assert np.linalg.norm(p[i] - q[i]) <= np.linalg.norm(pts - p[i], axis=1).min() + 1e-12
 
 
-def test_spline_matrices_match_surface():
-    assert np.allclose(periodic_deriv(32, 96, 0), surface.periodic_matrix(32, 96), atol=1e-12)
-    assert np.allclose(open_deriv(12, 40, 0, H), surface.open_matrix(12, 40), atol=1e-12)
+def test_spline_derivative_matrices():
     # First derivative of a pure harmonic sampled at the nodes: exact to spline accuracy.
     u = 2 * np.pi * np.arange(32) / 32
-    d = periodic_deriv(32, 96, 1) @ np.sin(3 * u)
+    d = surface.periodic_matrix(32, 96, 1) @ np.sin(3 * u)
     assert np.allclose(d, 3 * np.cos(3 * 2 * np.pi * np.arange(96) / 96), atol=0.02)
+    z = np.linspace(0, 1, 12)
+    assert np.allclose(surface.open_matrix(12, 40, 1) @ z**2, 2 * np.linspace(0, 1, 40), atol=1e-9)
 
 
 # ------------------------------------------------------------------ profiles

@@ -13,7 +13,7 @@ def test_transport_map_pushes_uniform_light_onto_a_disc():
     grid_m = (np.arange(m) + 0.5) / m
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        y1, y2, err = ot.barycentric_map(np.ones((n, n)), target, grid_n, grid_n, grid_n, grid_m, (1 / n) ** 2)
+        y1, y2, err, _ = ot.barycentric_map(np.ones((n, n)), target, grid_n, grid_n, grid_n, grid_m, (1 / n) ** 2)
     pushed, _, _ = np.histogram2d(y1.ravel(), y2.ravel(), bins=[n, m], range=[[0, 1], [0, 1]])
     assert err < 0.02
     assert np.corrcoef(pushed.ravel(), target.ravel())[0, 1] > 0.9

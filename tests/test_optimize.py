@@ -1,0 +1,78 @@
+"""The refinements on tiny scenes: gradients, steps, checkpoints."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from lampfab import optimize, room, splat, surface
+
+
+@pytest.fixture(scope="module")
+def tiny_setup(tiny_design, inner_layer):
+    lens = tiny_design.lens
+    cyl = surface.Cylinder(lens.outer_radius_mm, lens.height_mm)
+    walls = room.walls(tiny_design)
+    rng = np.random.default_rng(7)
+    targets = [rng.random(room.image_shape(w, 16)) for w in walls]
+    return cyl, walls, targets
+
+
+def _optimizer(cls, tiny_design, inner_layer, tiny_setup, **changes):
+    cyl, walls, targets = tiny_setup
+    opt = dataclasses.replace(tiny_design.optimize, **changes)
+    return cls(cyl, *inner_layer, room.light_position(tiny_design), 1.49, walls, targets, opt, 20.0, 45.0)
+
+
+def test_splat_gradient_matches_finite_differences(mi, tiny_design, inner_layer, tiny_setup):
+    from lampfab import losses
+
+    opt = _optimizer(splat.SplatOptimizer, tiny_design, inner_layer, tiny_setup, splat_photons=200_000)
+    h = np.random.default_rng(3).normal(scale=0.5, size=(tiny_design.optimize.grid_u, tiny_design.optimize.grid_v))
+    loss, grad = opt.gradient(h, [0, 1, 2], seed=5)
+
+    def loss_at(heights):
+        return sum(losses.si_mse(opt.render(heights, k, seed=5), opt.targets[k], np.mean) for k in range(3))
+
+    assert loss == pytest.approx(loss_at(h), rel=1e-4)
+    direction = grad / np.abs(grad).max()
+    eps = 0.01
+    measured = loss_at(h + eps * direction) - loss_at(h - eps * direction)
+    predicted = 2 * eps * np.sum(grad * direction)
+    assert predicted > 0 and measured == pytest.approx(predicted, rel=0.1)
+
+
+def test_splat_steps_reduce_the_loss_and_respect_the_slope_limit(mi, tiny_design, inner_layer, tiny_setup):
+    opt = _optimizer(splat.SplatOptimizer, tiny_design, inner_layer, tiny_setup, splat_photons=100_000,
+                     iterations=6, levels=1, learning_rate=0.2)
+    state = optimize.State(np.zeros((tiny_design.optimize.grid_u, tiny_design.optimize.grid_v)), 0, 0)
+    first, _ = opt.gradient(state.heights, [0, 1, 2], seed=0)
+    state = opt.run(state, lambda s: None, lambda s: None, lambda s, loss, msg: None)
+    last, _ = opt.gradient(state.heights, [0, 1, 2], seed=0)
+    assert state.step == 6 and last < first
+    tilt, _ = surface.slopes_deg(opt.cyl, state.heights, 64, 17)
+    assert tilt.max() <= 45.0 + 1e-6
+
+
+def test_seed_method_gives_a_finite_nonzero_gradient(mi, tiny_design, inner_layer, tiny_setup):
+    opt = _optimizer(optimize.SeedOptimizer, tiny_design, inner_layer, tiny_setup, spp=8)
+    h = np.zeros((tiny_design.optimize.grid_u, tiny_design.optimize.grid_v))
+    loss, grad = opt.gradient(h, [0], seed=1)
+    assert np.isfinite(loss) and np.all(np.isfinite(grad)) and np.abs(grad).max() > 0
+
+
+def test_state_round_trips_through_arrays():
+    state = optimize.State(np.arange(12.0).reshape(4, 3), level=1, step=7, lr_scale=0.5,
+                           m=np.ones((4, 3)), v=np.full((4, 3), 2.0), adam_t=3, log=[(0, 0, 1, 0.5, 0.1)])
+    back = optimize.State.from_arrays(state.to_arrays())
+    assert back.step == 7 and back.level == 1 and back.adam_t == 3 and back.lr_scale == 0.5
+    assert np.array_equal(back.heights, state.heights) and np.array_equal(back.v, state.v)
+    assert back.log == [(0.0, 0.0, 1.0, 0.5, 0.1)]
+
+
+def test_levels_are_four_times_finer_each():
+    from lampfab.profile import Optimize
+
+    opt = Optimize(grid_u=256, grid_v=65, levels=3, iterations=10)
+    assert optimize.level_grids(opt) == [(16, 5), (64, 17), (256, 65)]
+    assert sum(optimize.level_steps(opt)) == 10
