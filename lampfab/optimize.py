@@ -26,6 +26,9 @@ from .room import Wall
 # Losses above this multiple of the best loss so far count as an explosion: the
 # step is undone and the learning rate halved (the source's GD diverges this way).
 EXPLODE_FACTOR = 20.0
+# Slopes may exceed the fabrication limit by this much between steps; the final
+# surface is projected exactly.  Projecting every step to the limit undoes the steps.
+STEP_SLACK_DEG = 2.0
 
 
 @dataclass
@@ -96,11 +99,14 @@ class Optimizer:
         """A (rows, cols) preview of one wall."""
         raise NotImplementedError
 
-    def makeable(self, heights: np.ndarray) -> np.ndarray:
-        """Project a step back into what the fabrication profile allows (slopes, offsets)."""
+    def makeable(self, heights: np.ndarray, slack_deg: float = 0.0) -> np.ndarray:
+        """Project into what the fabrication profile allows (slopes, offsets).
+
+        During the run slopes may exceed the limit by ``slack_deg`` (each projection
+        costs image quality); the result of the run is projected exactly."""
         from .transport import limit_slopes
 
-        heights, _ = limit_slopes(self.cyl, heights, self.max_tilt)
+        heights, _ = limit_slopes(self.cyl, heights, self.max_tilt + slack_deg)
         return np.clip(heights, -self.max_offset, self.max_offset)
 
     # -- loop ---------------------------------------------------------------------
@@ -164,7 +170,8 @@ class Optimizer:
                         state.step += 1
                         continue
                     best[key] = min(best.get(key, math.inf), loss)
-                    state.heights = self.makeable(state.heights + surface.sample(self.step_delta(state, grad), *full))
+                    state.heights = self.makeable(state.heights + surface.sample(self.step_delta(state, grad), *full),
+                                                  STEP_SLACK_DEG)
                     state.log.append((state.step, level, key, loss, time.time() - t0))
                     state.step += 1
                     progress(state, loss, "")
@@ -178,6 +185,7 @@ class Optimizer:
         finally:
             for s, h in old.items():
                 signal.signal(s, h)
+        state.heights = self.makeable(state.heights)
         return state
 
 

@@ -54,8 +54,8 @@ def barycentric_map(source: np.ndarray, target: np.ndarray, x1: np.ndarray, x2: 
     while True:
         steps = iterations if eps <= eps_final else 8
         for _ in range(steps):
-            g = eps * (log_b - _apply(f / eps, c1.T, c2.T, eps))
             f = eps * (log_a - _apply(g / eps, c1, c2, eps))
+            g = eps * (log_b - _apply(f / eps, c1.T, c2.T, eps))
         if eps <= eps_final:
             break
         eps = max(eps * 0.5, eps_final)

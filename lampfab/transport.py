@@ -371,25 +371,27 @@ def surface_normals(cyl: surface.Cylinder, heights: np.ndarray) -> np.ndarray:
 
 
 def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float,
-                 passes: int = 12) -> tuple[np.ndarray, float]:
+                 passes: int = 20) -> tuple[np.ndarray, float]:
     """The nearest surface (least squares on slopes) whose spline tilts at most
-    ``max_tilt_deg`` against the radial direction, measured between the nodes too.
+    ``max_tilt_deg`` against the radial direction, measured as finely as the
+    fabrication check measures it.
 
-    Clamps the surface's own slope field and re-integrates, with the clamp tightened
-    while the spline still overshoots.  Returns (heights (nu, nv) mm, max tilt deg).
+    Clamps the surface's own slope field just under the limit and re-integrates,
+    tightening the clamp by half a degree while the spline still overshoots between
+    nodes.  Returns (heights (nu, nv) mm, max tilt deg).
     """
     nu, nv = heights.shape
-    fine = surface.fine_shape(nu, nv, 4)  # as finely as the fabrication check samples it
-    clamp = max_tilt_deg
+    fine = surface.fine_shape(nu, nv, 4)
     tilt = surface.slopes_deg(cyl, heights, *fine)[0].max()
+    clamp = max_tilt_deg - 0.5
     for _ in range(passes):
         if tilt <= max_tilt_deg:
             break
-        clamp -= 0.5 * (tilt - max_tilt_deg) + 0.25
         mean = heights.mean()
         heights = integrate_normals(cyl, surface_normals(cyl, heights), heights, np.ones((nu, nv)), 0.0, clamp)
         heights += mean - heights.mean()
         tilt = surface.slopes_deg(cyl, heights, *fine)[0].max()
+        clamp -= 0.5
     return heights, float(tilt)
 
 
