@@ -86,7 +86,7 @@ test: $(READY)
 	$(PY) -m pytest -m "not gpu" -q
 
 bench: $(READY)
-	$(PY) bench/bench_methods.py
+	$(PY) bench/bench_methods.py --record
 
 clean:
 	rm -rf $(BUILD)

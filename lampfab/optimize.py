@@ -26,9 +26,13 @@ from .room import Wall
 # Losses above this multiple of the best loss so far count as an explosion: the
 # step is undone and the learning rate halved (the source's GD diverges this way).
 EXPLODE_FACTOR = 20.0
-# Slopes may exceed the fabrication limit by this much between steps; the final
-# surface is projected exactly.  Projecting every step to the limit undoes the steps.
-STEP_SLACK_DEG = 2.0
+# Slopes may exceed the fabrication limit by this much between steps (a safety net:
+# the slope penalty keeps steps inside); the final surface is projected exactly.
+# Projecting every step to the limit undoes the steps.
+STEP_SLACK_DEG = 10.0
+# The slope penalty starts this far below the limit, so the final projection has
+# little left to do.
+PENALTY_MARGIN_DEG = 2.0
 
 
 @dataclass
@@ -157,7 +161,10 @@ class Optimizer:
                     t0 = time.time()
                     views = losses.views_for_step(opt.schedule, state.step, len(self.walls))
                     loss, grad_full = self.gradient(state.heights, views, seed=opt.seed * 100_003 + state.step * 17)
-                    grad = surface.sample_adjoint(grad_full, *grid)
+                    penalty, penalty_grad = surface.slope_penalty(self.cyl, state.heights,
+                                                                  self.max_tilt - PENALTY_MARGIN_DEG)
+                    loss += opt.slope_weight * penalty
+                    grad = surface.sample_adjoint(grad_full + opt.slope_weight * penalty_grad, *grid)
                     if not (np.isfinite(loss) and np.all(np.isfinite(grad))):
                         state.lr_scale *= 0.5
                         progress(state, loss, "non-finite loss or gradient: step skipped, learning rate halved")

@@ -388,7 +388,7 @@ def export(build: Build) -> dict:
                   bspline_deviation_mm=step_info["deviation_mm"],
                   bspline_poles=[step_info["poles_u"], step_info["poles_v"]])
     _log(f"export: lens.stl {stl_bytes / 1e6:.1f} MB, lens.step {step_info['file_bytes'] / 1e6:.1f} MB, "
-         f"B-spline deviation {step_info['deviation_mm'] * 1000:.2f} µm, volumes agree to {rel:.2e}")
+         f"B-spline deviation {step_info['deviation_mm'] * 1000:.3g} µm, volumes agree to {rel:.2e}")
     report.write(build.path("export.json"))
     return report.data
 

@@ -68,6 +68,7 @@ class Optimize:
     transport_corrections: int = _spec(3, 0, 20, doc="trace-and-re-aim passes after the first transport")
     dump_share: float = _spec(0.2, 0.0, 0.9, doc="light the transport may send just past the image's edges")
     smoothness: float = _spec(1e-3, 0.0, 10.0, doc="curvature penalty in the normal integration")
+    slope_weight: float = _spec(200.0, 0.0, 1e6, doc="weight of the slope-limit penalty in the loss")
     preview_every: int = _spec(50, 1, 1_000_000, doc="preview images every N steps")
     checkpoint_every: int = _spec(20, 1, 1_000_000, doc="checkpoint every N steps")
     seed: int = _spec(0, 0, 2**31 - 1, doc="random seed")

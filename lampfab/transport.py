@@ -372,25 +372,43 @@ def surface_normals(cyl: surface.Cylinder, heights: np.ndarray) -> np.ndarray:
 
 def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float,
                  passes: int = 20) -> tuple[np.ndarray, float]:
-    """The nearest surface (least squares on slopes) whose spline tilts at most
-    ``max_tilt_deg`` against the radial direction, measured as finely as the
-    fabrication check measures it.
+    """The surface closest to ``heights`` whose spline tilts at most ``max_tilt_deg``
+    against the radial direction, measured as finely as the fabrication check does.
 
-    Clamps the surface's own slope field just under the limit and re-integrates,
-    tightening the clamp by half a degree while the spline still overshoots between
-    nodes.  Returns (heights (nu, nv) mm, max tilt deg).
+    Node-to-node slopes steeper than a clamp are cut back to it, and only that
+    correction is integrated (least squares), so detail elsewhere is kept; the clamp
+    tightens by half a degree while the spline still overshoots between nodes.
+    Returns (heights (nu, nv) mm, max tilt deg).
     """
     nu, nv = heights.shape
     fine = surface.fine_shape(nu, nv, 4)
     tilt = surface.slopes_deg(cyl, heights, *fine)[0].max()
+    if tilt <= max_tilt_deg:
+        return heights, float(tilt)
+    du = 2 * np.pi / nu
+    dz = cyl.height_mm / (nv - 1)
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    a = np.concatenate([idx.ravel(), idx[:, 1:].ravel()])
+    b = np.concatenate([np.roll(idx, 1, axis=0).ravel(), idx[:, :-1].ravel()])
+    m = len(a)
+    diff = sp.csr_matrix((np.concatenate([np.ones(m), -np.ones(m)]),
+                          (np.concatenate([np.arange(m)] * 2), np.concatenate([a, b]))), shape=(m, nu * nv))
+    normal_eq = (diff.T @ diff + sp.identity(nu * nv) * 1e-9).tocsc()
     clamp = max_tilt_deg - 0.5
     for _ in range(passes):
+        # Edge slopes as tangents: along u, d ln r / du = (dr/du) / r; along z, dr/dz.
+        rho = np.log(cyl.radius_mm + heights)
+        edge = diff @ rho.ravel()
+        scale = np.concatenate([np.full(nu * nv, du), np.full(nu * (nv - 1), dz)])
+        r_edge = np.concatenate([np.full(nu * nv, 1.0), (cyl.radius_mm + heights[:, 1:]).ravel()])
+        tangent = edge / scale * r_edge
+        limit = np.tan(np.radians(clamp))
+        excess = np.sign(tangent) * np.maximum(np.abs(tangent) - limit, 0.0)
+        delta = spsolve(normal_eq, diff.T @ (-excess / r_edge * scale))
+        heights = (cyl.radius_mm + heights) * np.exp(delta.reshape(nu, nv) - delta.mean()) - cyl.radius_mm
+        tilt = surface.slopes_deg(cyl, heights, *fine)[0].max()
         if tilt <= max_tilt_deg:
             break
-        mean = heights.mean()
-        heights = integrate_normals(cyl, surface_normals(cyl, heights), heights, np.ones((nu, nv)), 0.0, clamp)
-        heights += mean - heights.mean()
-        tilt = surface.slopes_deg(cyl, heights, *fine)[0].max()
         clamp -= 0.5
     return heights, float(tilt)
 

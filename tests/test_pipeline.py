@@ -108,3 +108,34 @@ def test_help_is_instant_and_lists_the_stages():
     for stage in ["prepare", "plan", "init", "optimize", "solid", "check", "export", "verify", "lamp"]:
         assert stage in run.stdout
     assert "mitsuba" not in run.stderr and "OCP" not in run.stderr  # heavy imports stay lazy
+
+
+@pytest.mark.slow
+def test_optimize_resumes_after_sigkill(tmp_path):
+    import os
+    import signal
+    import time
+
+    profile = tmp_path / "resume.toml"
+    profile.write_text(TINY.read_text().replace("iterations = 2", "iterations = 40"))
+    out = tmp_path / "b" / "apple"
+    prep = make("init", f"BUILD={tmp_path / 'b'}", "NAME=apple", f"PROFILE={profile}")
+    assert prep.returncode == 0, prep.stderr[-2000:]
+    args = [sys.executable, "stages/30_optimize.py", "--out", str(out), "--profile", str(profile)]
+    proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while not (out / "checkpoint.npz").exists() and time.time() < deadline:
+        time.sleep(0.2)
+    time.sleep(1.0)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert (out / "checkpoint.npz").exists() and not (out / "optimize.json").exists()
+    saved = np.load(out / "checkpoint.npz")
+    assert 0 < int(saved["step"]) < 40
+    again = subprocess.run(args, cwd=ROOT, capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert "resuming" in again.stdout
+    report = json.loads((out / "optimize.json").read_text())["figures"]
+    assert report["resumed"] and report["steps"] == 40
+    assert not (out / "checkpoint.npz").exists()
+    assert not list(out.glob(".*.tmp*")) and not list(out.glob(".heightmap*"))  # no half-written files
