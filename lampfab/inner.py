@@ -54,6 +54,8 @@ def load_inner(path: str | Path | None, scale: float, light_mm: np.ndarray,
     where = f"inner layer {path}"
     if path.suffix.lower() not in FORMATS:
         raise LampfabError(f"{where}: unsupported format; use one of {', '.join(FORMATS)}")
+    if not path.is_file():
+        raise LampfabError(f"{where}: file not found")
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
     except FileNotFoundError:

@@ -139,3 +139,22 @@ def test_optimize_resumes_after_sigkill(tmp_path):
     assert report["resumed"] and report["steps"] == 40
     assert not (out / "checkpoint.npz").exists()
     assert not list(out.glob(".*.tmp*")) and not list(out.glob(".heightmap*"))  # no half-written files
+
+
+@pytest.mark.slow
+def test_floor_and_per_wall_targets(tmp_path):
+    """A fourth surface, the floor behind the lamp, and a different image per wall."""
+    profile = tmp_path / "floor.toml"
+    profile.write_text(TINY.read_text().replace('walls = ["front", "left", "right"]',
+                                                'walls = ["front", "left", "right", "floor"]'))
+    run = make("verify", f"BUILD={tmp_path / 'b'}", "NAME=four", f"PROFILE={profile}", "ALLOW_FAIL=1",
+               f"TARGET_FLOOR={ROOT / 'examples' / 'star.png'}")
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    out = tmp_path / "b" / "four"
+    design = json.loads((out / "design.json").read_text())
+    floor = next(w for w in design["walls"] if w["name"] == "floor")
+    assert floor["origin"][2] < 0 and abs(floor["down"][2]) < 1e-9  # on the floor, below the lamp
+    figures = json.loads((out / "verify.json").read_text())["figures"]["walls"]
+    assert set(figures) == {"front", "left", "right", "floor"}
+    prepared = json.loads((out / "prepare.json").read_text())["figures"]
+    assert prepared["floor_source"].endswith("star.png") and prepared["front_source"].endswith("apple.png")

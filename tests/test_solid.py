@@ -24,6 +24,8 @@ def bumps(nu=32, nv=8, seed=0, amp=2.0):
 
 
 def inner(sections=32, **kw):
+    """A coarse inner layer sized for CYL: r 20 mm, floor at z 12, roof apex at z 68."""
+    kw = {"radius_mm": 20.0, "z0_mm": 12.0, "z1_mm": 68.0, **kw}
     mesh = default_inner_mesh(sections=sections, **kw)
     return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
 
