@@ -110,6 +110,7 @@ class Optimizer:
         costs image quality); the result of the run is projected exactly."""
         from .transport import limit_slopes
 
+        heights = np.clip(heights, -self.max_offset, self.max_offset)
         heights, _ = limit_slopes(self.cyl, heights, self.max_tilt + slack_deg)
         return np.clip(heights, -self.max_offset, self.max_offset)
 

@@ -26,6 +26,10 @@ from .room import SECTOR_WIDTH_DEG, Wall
 # plans with: the rest is left for the tilt that inner-layer refraction already needs.
 REACH_MARGIN = 0.8
 
+# The slope projection aims this far under the limit: the fabrication check samples
+# the spline at other points than the projection does.
+SLOPE_MARGIN_DEG = 0.2
+
 # Least-squares weight of nodes whose light reaches no target (back sector, nodes
 # without photons): they only follow their neighbours smoothly.
 UNASSIGNED_WEIGHT = 1e-2
@@ -305,10 +309,12 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
             wanted = _unit(np.where(unassigned[..., None], d_in, goal - pts))
             d_out = _unit(wanted + aim_offset)
             normals = np.where(unassigned[..., None], radial, snell_normals(d_in, d_out, ior))
-            new = integrate_normals(cyl, normals, heights, weights, smoothness, max_tilt_deg)
+            # Clipped every round: a radius at or below zero would wreck the next one.
+            new = np.clip(integrate_normals(cyl, normals, heights, weights, smoothness, max_tilt_deg),
+                          -max_offset_mm, max_offset_mm)
             change = float(np.abs(new - heights).max())
             heights = new
-        flux, d_in, d_actual = node_light(cyl, np.clip(heights, -max_offset_mm, max_offset_mm), tessellation,
+        flux, d_in, d_actual = node_light(cyl, heights, tessellation,
                                           inner_vertices, inner_faces, light_mm, ior, photons,
                                           seed + correction + 1)
         lit = (~unassigned) & (flux > 0)
@@ -317,8 +323,8 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
         log(f"transport: pass {correction + 1}/{corrections + 1}: offsets {heights.min():.2f} to "
             f"{heights.max():.2f} mm, mean aim error {errors[-1]:.2f}°")
         aim_offset = np.where(lit[..., None], aim_offset + (wanted - d_actual), aim_offset)
-    heights, max_tilt = limit_slopes(cyl, heights, max_tilt_deg)
     clipped = float(np.mean(np.abs(heights) > max_offset_mm))
+    heights, max_tilt = limit_slopes(cyl, np.clip(heights, -max_offset_mm, max_offset_mm), max_tilt_deg)
     heights = np.clip(heights, -max_offset_mm, max_offset_mm)
     figures.update(offset_min_mm=float(heights.min()), offset_max_mm=float(heights.max()),
                    clipped_fraction=clipped, last_change_mm=change, grid=list(grid),
@@ -382,6 +388,8 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     """
     nu, nv = heights.shape
     fine = surface.fine_shape(nu, nv, 4)
+    # Aim a little under the limit: the check samples the spline at other points.
+    max_tilt_deg -= SLOPE_MARGIN_DEG
     tilt = surface.slopes_deg(cyl, heights, *fine)[0].max()
     if tilt <= max_tilt_deg:
         return heights, float(tilt)
