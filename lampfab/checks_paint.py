@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .checks_geometry import Fields
+from .profile import Fabrication
 
 MAX_WIDTH = 1024
 TITLE_PX = 18

@@ -22,8 +22,6 @@ class SplatOptimizer(Optimizer):
     def _ensure_scene(self, heights: np.ndarray) -> None:
         if self._scene_grid == heights.shape:
             return
-        import drjit as dr
-
         from .trace import MeshScene
 
         verts, faces = surface.closed_outer_mesh(self.cyl, heights, self.opt.tessellation)

@@ -1,19 +1,17 @@
 """A photon tracer through the lens's true facets, onto the walls.
 
-Mitsuba only intersects rays with the triangle mesh (its BVH, on the CPU or GPU); the
-optics run in numpy: each hit refracts or reflects with the Fresnel probability, using
-the hit triangle's geometric normal ``si.n`` (never an interpolated shading normal: a
-printed or milled part has only its facets).  Photons that leave the lens are splatted
-onto the wall rectangles; every photon counts (no camera connection), and the numpy
-splat is deterministic for a given seed.
+Mitsuba intersects rays with the triangle mesh (its BVH) and Dr.Jit runs the optics
+in wavefronts on the CPU or GPU: each hit refracts or reflects with the Fresnel
+probability, using the hit triangle's geometric normal ``si.n`` (never an interpolated
+shading normal: a printed or milled part has only its facets).  Photons that leave the
+lens land on the wall rectangles; every photon counts (no camera connection), and the
+per-pixel sums run in numpy in a fixed order, so a seed gives the same images.
 
 The mesh must be a closed, consistently oriented solid (outward normals): the sign of
 ``dot(d, n)`` says whether a photon enters or leaves the glass.
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -37,26 +35,6 @@ class MeshScene:
         params["faces"] = mi.UInt(np.ascontiguousarray(faces, np.uint32).ravel())
         params.update()
         self.scene = mi.load_dict({"type": "scene", "lens": self.mesh})
-
-    def intersect(self, o: np.ndarray, d: np.ndarray):
-        """Nearest hits: (valid (n,) bool, points (n, 3) float64 mm, face normals (n, 3))."""
-        import drjit as dr
-
-        mi = self.mi
-        f32 = lambda a: mi.Float(np.ascontiguousarray(a, np.float32))  # noqa: E731
-        ray = mi.Ray3f(mi.Point3f(f32(o[:, 0]), f32(o[:, 1]), f32(o[:, 2])),
-                       mi.Vector3f(f32(d[:, 0]), f32(d[:, 1]), f32(d[:, 2])))
-        si = self.scene.ray_intersect(ray, mi.RayFlags.Minimal, False)
-        valid = si.is_valid()
-        dr.eval(valid, si.p, si.n)
-        p = np.stack([si.p.x.numpy(), si.p.y.numpy(), si.p.z.numpy()], 1).astype(np.float64)
-        n = np.stack([si.n.x.numpy(), si.n.y.numpy(), si.n.z.numpy()], 1).astype(np.float64)
-        return valid.numpy().astype(bool), p, n
-
-
-def _vec(mi, a: np.ndarray):
-    f32 = lambda c: mi.Float(np.ascontiguousarray(c, np.float32))  # noqa: E731
-    return mi.Vector3f(f32(a[:, 0]), f32(a[:, 1]), f32(a[:, 2]))
 
 
 def _np(v) -> np.ndarray:
