@@ -20,7 +20,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
 from . import lens, ot, surface
-from .room import SECTOR_WIDTH_DEG, Wall
+from .room import SECTOR_CENTRE_DEG, SECTOR_WIDTH_DEG, Wall
 
 # Share of the largest deflection a slope-limited surface can make that the transport
 # plans with: the rest is left for the tilt that inner-layer refraction already needs.
@@ -29,6 +29,10 @@ REACH_MARGIN = 0.8
 # The slope projection aims this far under the limit: the fabrication check samples
 # the spline at other points than the projection does.
 SLOPE_MARGIN_DEG = 0.2
+
+# A sector follows its image's light centroid at most this far (degrees): beyond it the
+# sector would face the next wall more than its own.
+MAX_SECTOR_SHIFT_DEG = 30.0
 
 # Least-squares weight of nodes whose light reaches no target (back sector, nodes
 # without photons): they only follow their neighbours smoothly.
@@ -85,13 +89,52 @@ def node_light(cyl: surface.Cylinder, heights: np.ndarray, tessellation: int,
     return flux.reshape(nu, nv), mean_direction(din), mean_direction(dout)
 
 
-def sector_nodes(wall: Wall, nu: int) -> np.ndarray:
-    """Indices of the u nodes in the wall's 90° sector, in increasing u (wrapping)."""
-    lo, hi = np.radians(wall.sector_deg())
+def sector_nodes(sector_deg: tuple[float, float], nu: int) -> np.ndarray:
+    """Indices of the u nodes in a sector (lo, hi) degrees, in increasing u (wrapping)."""
+    lo, hi = np.radians(sector_deg)
     u = np.arange(nu) * (2 * np.pi / nu)
     rel = (u - lo) % (2 * np.pi)
     inside = np.nonzero(rel < hi - lo)[0]
     return inside[np.argsort(rel[inside])]
+
+
+def sectors(walls: list[Wall], targets: list[np.ndarray], light_mm: np.ndarray,
+            dump_share: float) -> dict[str, tuple[float, float]]:
+    """The span of u (degrees, lo < hi) whose light each wall receives.
+
+    A sector centred on its wall must shift its light sideways on average when the
+    image's light is off-centre (a portrait lit from one side).  Every sector then
+    winds the radius the same way round the lamp, and a closed surface cannot do that:
+    integrating such normals costs tens of millimetres and degrees of error.  So each
+    sector is centred on the angle of its image's light centroid instead (its light then
+    needs no net sideways shift); neighbouring sectors meet half-way between their
+    centres.  A side without a neighbouring wall reaches at least as far as the centred
+    sector would: beyond it the lens sends its light on unbent (``design``), and that
+    light must not land on the image's edge.
+    """
+    centre = {}
+    for wall, target in zip(walls, targets):
+        padded, (pad_r, pad_c) = _with_margin(target, dump_share)
+        across, _ = _wall_angles(wall, light_mm, padded.shape[1] - 2 * pad_c, padded.shape[0] - 2 * pad_r,
+                                 pad_c, pad_r)
+        column_mass = padded.sum(0)
+        shift = float(np.degrees(column_mass @ across / column_mass.sum()))
+        shift = float(np.clip(shift, -MAX_SECTOR_SHIFT_DEG, MAX_SECTOR_SHIFT_DEG))
+        right_with_u, _ = orientation(wall)
+        centre[wall.name] = SECTOR_CENTRE_DEG[wall.name] + (shift if right_with_u else -shift)
+    half = SECTOR_WIDTH_DEG / 2
+    out = {}
+    for name, c in centre.items():
+        nominal = SECTOR_CENTRE_DEG[name]
+        lo, hi = min(c, nominal) - half, max(c, nominal) + half
+        for other, c2 in centre.items():
+            gap = (SECTOR_CENTRE_DEG[other] - SECTOR_CENTRE_DEG[name]) % 360
+            if gap == SECTOR_WIDTH_DEG:  # the neighbour on the high-u side
+                hi = 0.5 * (c + c2 + (360 if c2 < c else 0))
+            elif gap == 360 - SECTOR_WIDTH_DEG:  # the neighbour on the low-u side
+                lo = 0.5 * (c + c2 - (360 if c2 > c else 0))
+        out[name] = (lo, hi)
+    return out
 
 
 def orientation(wall: Wall) -> tuple[bool, bool]:
@@ -171,7 +214,10 @@ def target_points(wall: Wall, flux: np.ndarray, d_plain: np.ndarray, target: np.
     column = ordered[n1 // 2]
     x2 = np.arctan2(column @ down_axis, column @ centre_dir)
     x2 = np.maximum.accumulate(x2)  # guard against noise in near-empty rows
-    x1 = (np.arange(n1) + 0.5 - n1 / 2) * (np.radians(SECTOR_WIDTH_DEG) / n1)
+    # Across: the nodes' own angles from the wall's centre direction, along the image's
+    # right axis (the sector need not be centred on the wall, see ``sectors``).
+    u_rel = (nodes * (2 * np.pi / len(flux)) - np.radians(SECTOR_CENTRE_DEG[wall.name]) + np.pi) % (2 * np.pi) - np.pi
+    x1 = u_rel if right_with_u else -u_rel[::-1]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # log(0) for black cells is meant
         ang1, ang2, err, potentials = ot.barycentric_map(
@@ -285,9 +331,11 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     # ceiling or floor) instead of being forced into steep, missing slopes.
     deflection = REACH_MARGIN * max_deflection_deg(ior, max_tilt_deg)
     plain_points = surface.points(cyl, heights)
+    spans = sectors(walls, targets, light_mm, dump_share)
+    figures["sectors_deg"] = {name: [round(lo, 2), round(hi, 2)] for name, (lo, hi) in spans.items()}
     usable = np.zeros((nu, nv), bool)
     for wall in walls:
-        nodes = sector_nodes(wall, nu)
+        nodes = sector_nodes(spans[wall.name], nu)
         usable[nodes] = reachable(wall, plain_points[nodes], d_plain[nodes], deflection)
     figures["usable_node_share"] = float(usable.mean())
     u = np.arange(nu) * (2 * np.pi / nu)
@@ -299,7 +347,7 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     for correction in range(corrections + 1):
         # Where each node's light should go.  Redone every pass: as the surface moves,
         # the light each node catches moves with it.
-        goal, weights = _goals(walls, targets, flux, d_plain, usable, light_mm, dump_share, warm, figures, nu, nv)
+        goal, weights = _goals(walls, targets, spans, flux, d_plain, usable, light_mm, dump_share, warm, figures)
         # Nodes that send to no wall stay a plain cylinder (radial normals): bending
         # their light anywhere useful is not asked for, and a sphere around the LED
         # would cost tens of millimetres of sag.
@@ -377,22 +425,27 @@ def surface_normals(cyl: surface.Cylinder, heights: np.ndarray) -> np.ndarray:
 
 
 def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float,
-                 passes: int = 20) -> tuple[np.ndarray, float]:
+                 passes: int = 30) -> tuple[np.ndarray, float]:
     """The surface closest to ``heights`` whose spline tilts at most ``max_tilt_deg``
     against the radial direction, measured as finely as the fabrication check does.
 
     Node-to-node slopes steeper than a clamp are cut back to it, and only that
-    correction is integrated (least squares), so detail elsewhere is kept; the clamp
-    tightens by half a degree while the spline still overshoots between nodes.
+    correction is integrated (least squares), so detail elsewhere is kept.  Where the
+    spline still overshoots between nodes (or at the caps, where its end condition
+    bends it), the clamp of the edges around that place tightens by the overshoot (at
+    least half a degree) per pass; elsewhere it stays just under the limit.
     Returns (heights (nu, nv) mm, max tilt deg).
     """
+    from scipy.ndimage import maximum_filter
+
     nu, nv = heights.shape
-    fine = surface.fine_shape(nu, nv, 4)
+    k = 4
+    fine = surface.fine_shape(nu, nv, k)
     # Aim a little under the limit: the check samples the spline at other points.
     max_tilt_deg -= SLOPE_MARGIN_DEG
-    tilt = surface.slopes_deg(cyl, heights, *fine)[0].max()
-    if tilt <= max_tilt_deg:
-        return heights, float(tilt)
+    tilt = surface.slopes_deg(cyl, heights, *fine)[0]
+    if tilt.max() <= max_tilt_deg:
+        return heights, float(tilt.max())
     du = 2 * np.pi / nu
     dz = cyl.height_mm / (nv - 1)
     idx = np.arange(nu * nv).reshape(nu, nv)
@@ -402,35 +455,40 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     diff = sp.csr_matrix((np.concatenate([np.ones(m), -np.ones(m)]),
                           (np.concatenate([np.arange(m)] * 2), np.concatenate([a, b]))), shape=(m, nu * nv))
     normal_eq = (diff.T @ diff + sp.identity(nu * nv) * 1e-9).tocsc()
-    clamp = max_tilt_deg - 0.5
+    scale = np.concatenate([np.full(nu * nv, du), np.full(nu * (nv - 1), dz)])
+    clamp = np.full(m, max_tilt_deg - 0.5)
     for _ in range(passes):
         # Edge slopes as tangents: along u, d ln r / du = (dr/du) / r; along z, dr/dz.
         rho = np.log(cyl.radius_mm + heights)
         edge = diff @ rho.ravel()
-        scale = np.concatenate([np.full(nu * nv, du), np.full(nu * (nv - 1), dz)])
         r_edge = np.concatenate([np.full(nu * nv, 1.0), (cyl.radius_mm + heights[:, 1:]).ravel()])
         tangent = edge / scale * r_edge
         limit = np.tan(np.radians(clamp))
         excess = np.sign(tangent) * np.maximum(np.abs(tangent) - limit, 0.0)
         delta = spsolve(normal_eq, diff.T @ (-excess / r_edge * scale))
         heights = (cyl.radius_mm + heights) * np.exp(delta.reshape(nu, nv) - delta.mean()) - cyl.radius_mm
-        tilt = surface.slopes_deg(cyl, heights, *fine)[0].max()
-        if tilt <= max_tilt_deg:
+        tilt = surface.slopes_deg(cyl, heights, *fine)[0]
+        if tilt.max() <= max_tilt_deg:
             break
-        clamp -= 0.5
-    return heights, float(tilt)
+        # How far each node's neighbourhood (one cell around) overshoots the limit.
+        over = (maximum_filter(tilt, size=2 * k + 1, mode=("wrap", "nearest"))[::k, ::k] - max_tilt_deg).ravel()
+        over_edge = np.maximum(over[a], over[b])
+        clamp[over_edge > 0] -= np.maximum(0.5, over_edge[over_edge > 0])
+    return heights, float(tilt.max())
 
 
-def _goals(walls, targets, flux, d_plain, usable, light_mm, dump_share, warm, figures, nu, nv):
+def _goals(walls, targets, spans, flux, d_plain, usable, light_mm, dump_share, warm, figures):
     """Target point per node ((nu, nv, 3) mm, NaN where no wall) and least-squares weights.
 
-    usable (nu, nv) bool: nodes whose light can reach their wall at all."""
+    spans: each wall's sector (``sectors``); usable (nu, nv) bool: nodes whose light
+    can reach their wall at all."""
+    nu, nv = flux.shape
     goal = np.full((nu, nv, 3), np.nan)
     weights = np.full((nu, nv), UNASSIGNED_WEIGHT)
     # Blur of about one node spacing (rad^2): sharp, yet smooth enough to integrate.
     eps_final = (np.radians(SECTOR_WIDTH_DEG) / (nu / 4)) ** 2
     for wall, target in zip(walls, targets):
-        nodes = sector_nodes(wall, nu)
+        nodes = sector_nodes(spans[wall.name], nu)
         ok = usable[nodes]
         points, err = target_points(wall, np.where(usable, flux, 0.0), d_plain, target, nodes, light_mm,
                                     eps_final, dump_share, warm)
