@@ -3,7 +3,11 @@
 # Phony names: lamp, test, clean, bench, help, and one alias per stage (make optimize).
 
 TARGET  ?= examples/apple.png
-NAME    ?= $(basename $(notdir $(TARGET)))
+TEXT    ?=
+PANORAMA ?=
+# Make splits words at spaces: a file name with spaces gives a NAME with underscores.
+space  := $(subst ,, )
+NAME    ?= $(if $(TEXT),text,$(basename $(notdir $(subst $(space),_,$(or $(PANORAMA),$(TARGET))))))
 PROFILE ?= default
 FAB     ?= sla_resin
 ALLOW_FAIL ?=
@@ -20,7 +24,8 @@ READY  := $(VENV)/.installed
 ARGS   = --out "$(B)" --profile "$(PROFILE)" --fab "$(FAB)"
 RUN    = $(PY) stages/$(1).py $(ARGS)
 TARGETS = --target "$(TARGET)" --target-front "$(TARGET_FRONT)" --target-left "$(TARGET_LEFT)" \
-          --target-right "$(TARGET_RIGHT)" --target-floor "$(TARGET_FLOOR)"
+          --target-right "$(TARGET_RIGHT)" --target-floor "$(TARGET_FLOOR)" \
+          --text "$(TEXT)" --panorama "$(PANORAMA)"
 
 .DELETE_ON_ERROR:
 .PHONY: lamp test clean bench help prepare plan init optimize solid check export verify FORCE
@@ -30,9 +35,13 @@ lamp: $(B)/report.html
 
 help:
 	@echo "make lamp TARGET=image.png [NAME=..] [PROFILE=draft|default|fine] [FAB=sla_resin|acrylic_cnc4|...]"
+	@echo "make lamp TEXT=\"Happy birthday\"      words instead of an image (build/text/)"
+	@echo "make lamp PANORAMA=examples/panorama.png   a 360° panorama wrapped around the room"
 	@echo "make <stage> TARGET=..   one stage and what it needs: prepare plan init optimize solid check export verify"
 	@echo "make test | make bench | make clean"
-	@echo "variables: TARGET_FRONT/LEFT/RIGHT/FLOOR (per-wall images), ALLOW_FAIL=1 (go on after a failed check)"
+	@echo "variables: TARGET_FRONT/LEFT/RIGHT/FLOOR (per-wall images), ALLOW_FAIL=1 (go on after a failed check),"
+	@echo "           BUILD=build (output folder), NAME (default: the image's name)"
+	@echo "without make: lampfab --help, lampfab <stage> --help"
 	@$(PY) -m lampfab.cli profiles 2>/dev/null || true
 
 # -- setup: system libraries, virtual environment, Python packages ----------------------

@@ -5,6 +5,8 @@
 
 writes examples/results/apple.png: the target, then what verify rendered from the
 exported STL on each wall (point light, then the LED's real size), with Pearson r.
+When the walls have different targets (a panorama, per-wall images), a first row shows
+each wall's target.  ``--build DIR`` reads DIR/<name> instead of build/<name>.
 """
 
 import json
@@ -26,16 +28,21 @@ def tile(path: Path, label: str) -> Image.Image:
     return out
 
 
-def figure(name: str) -> Path:
-    build = ROOT / "build" / name
+def figure(name: str, builds: Path = ROOT / "build") -> Path:
+    build = builds / name
     verify = json.loads((build / "verify.json").read_text())["figures"]["walls"]
-    tiles = [tile(build / "targets" / f"{next(iter(verify))}_preview.png", "target")]
+    targets = [build / "targets" / f"{wall}_preview.png" for wall in verify]
+    tiles = [tile(targets[0], "target")]
     for wall, f in verify.items():
         tiles.append(tile(build / "verify" / f"{wall}.png", f"{wall}: r {f['pearson']:.2f}"))
     for wall, f in verify.items():
         tiles.append(tile(build / "verify" / f"{wall}_led.png", f"{wall}, LED: r {f['led_pearson']:.2f}"))
     columns = 1 + len(verify)
     rows = [tiles[:columns], [Image.new("L", tiles[0].size, 0)] + tiles[columns:]]
+    if len({p.read_bytes() for p in targets}) > 1:  # a target per wall: a row of them instead
+        columns -= 1
+        rows = [[tile(p, f"target: {wall}") for p, wall in zip(targets, verify)], tiles[1:columns + 1],
+                tiles[columns + 1:]]
     height = sum(max(t.height for t in row) for row in rows)
     sheet = Image.new("L", (columns * (TILE + 4), height + 4), 0)
     y = 0
@@ -50,5 +57,9 @@ def figure(name: str) -> Path:
 
 
 if __name__ == "__main__":
-    for n in sys.argv[1:]:
-        print(figure(n))
+    args = sys.argv[1:]
+    builds = ROOT / "build"
+    if args[:1] == ["--build"]:
+        builds, args = Path(args[1]), args[2:]
+    for n in args:
+        print(figure(n, builds))

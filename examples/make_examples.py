@@ -5,6 +5,8 @@
 apple.png     512x512  white apple with stem and leaf on black (the default target)
 star.png      512x512  five-point star inside a ring
 portrait.png  512x384  synthetic greyscale "photo": a shaded face, continuous tones
+panorama.png  1536x512 360° panorama (centre column = front wall): a lit mountain range
+              with a moon, wrapping around without a seam (make lamp PANORAMA=...)
 
 Silhouettes are drawn at 4x (ImageDraw shapes; the apple body as a smooth signed
 distance field) and reduced with area averaging (anti-aliased edges); the portrait is computed with numpy from soft-edged ellipses.
@@ -161,8 +163,23 @@ def portrait() -> Image.Image:
     return Image.fromarray(np.round(img * 255).astype(np.uint8))
 
 
+def panorama() -> Image.Image:
+    # The ridge is a sum of sines with whole periods over 360°, so the two ends meet.
+    w, h = 1536, 512
+    x = np.arange(w * SS) / (w * SS) * 2 * np.pi
+    ridge = 0.55 + 0.10 * np.sin(3 * x + 0.4) + 0.07 * np.sin(7 * x + 1.9) + 0.04 * np.sin(17 * x + 0.3) \
+        + 0.02 * np.sin(41 * x + 2.2)
+    y = (np.arange(h * SS)[:, None] + 0.5) / (h * SS)
+    img = (y > ridge[None, :]).astype(np.float64)  # lit mountains below the ridge line
+    im = Image.fromarray(np.round(img * 255).astype(np.uint8))
+    draw = ImageDraw.Draw(im)
+    _ellipse(draw, w / 2 + 90, 158, 40, 40, 255)  # the moon above the front wall
+    _ellipse(draw, w / 2 + 106, 149, 34, 34, 0)  # ... a crescent
+    return _down(im)
+
+
 def main() -> None:
-    for name, make in (("apple", apple), ("star", star), ("portrait", portrait)):
+    for name, make in (("apple", apple), ("star", star), ("portrait", portrait), ("panorama", panorama)):
         out = HERE / f"{name}.png"
         make().save(out, format="PNG", optimize=True)
         print(out)

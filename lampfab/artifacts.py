@@ -21,6 +21,12 @@ import numpy as np
 
 from .errors import LampfabError
 
+# mkstemp makes its files private (0600); a finished artifact gets the mode any new
+# file of this user gets, so a print shop's account or a web server can read it.
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+_FILE_MODE = 0o666 & ~_UMASK
+
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str = ""):
@@ -31,11 +37,20 @@ def atomic_path(path: str | os.PathLike, suffix: str = ""):
     os.close(fd)
     try:
         yield Path(tmp)
+        os.chmod(tmp, _FILE_MODE)
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+def remove_stale_temps(path: str | os.PathLike) -> None:
+    """Delete the temporary files of ``atomic_path(path)`` that a killed process left
+    behind (kill -9 skips the clean-up).  Only the one writer of ``path`` may call it."""
+    path = Path(path)
+    for stale in path.parent.glob(f".{path.name}.*"):
+        stale.unlink(missing_ok=True)
 
 
 def write_json(path, data: dict) -> None:
@@ -123,13 +138,14 @@ class StageReport:
     """The JSON report every stage writes: inputs (with hashes), settings, versions,
     wall time and key figures."""
 
-    def __init__(self, stage: str, inputs: dict[str, str], settings: dict):
+    def __init__(self, stage: str, inputs: dict[str, str], settings: dict, seed: int | None = None):
         self.stage = stage
         self.start = time.time()
         self.data = {
             "stage": stage,
             "inputs": {k: {"path": str(v), "sha256": file_sha256(v)} for k, v in inputs.items()
                        if v and Path(v).is_file()},
+            "seed": seed,
             "settings": settings,
             "versions": versions(),
             "figures": {},

@@ -21,14 +21,17 @@ The checks (what and why):
   max_slope        steepest tilt of the outer surface against the radial direction
                    (fab.max_slope_deg)
   tool_radius      smallest concave radius of curvature vs the ball-end radius (CNC only)
+  tool_axis        3-axis milling: steepest surface against the tool axis of its best
+                   indexed setup (fab.setups, fab.max_tool_angle_deg; checks_cnc)
   overhang         outer surface leaning past OVERHANG_DEG from vertical, printed upright
                    (SLA only)
   cavity_overhang  cavity ceiling leaning past OVERHANG_DEG from vertical (SLA only)
   build_volume     bounding box vs the machine (fab.build_*_mm)
   mesh_valid       watertight, manifold, consistently wound, no self-intersections, one body
   drain            no sealed void; the cavity opens to the outside (and the LED is not in
-                   material); CNC notes on setups
-  cavity_access    the cavity is no wider than the bore that reaches it (not SLA)
+                   material)
+  cavity_access    no cavity surface hidden from a tool entering through the bore (not
+                   SLA; checks_cnc)
 
 Geometry (heightmap + inner layer) is measured on a fine (u, z) grid of the outer
 surface (``checks_geometry``); topology on the solid's mesh (``checks_mesh``).
@@ -41,6 +44,7 @@ import math
 import numpy as np
 
 from . import tolerances
+from .checks_cnc import cavity_access, tool_axis, tool_axis_cells
 from .checks_geometry import Fields, compute_fields
 from .checks_mesh import MeshReport, inspect_mesh
 from .profile import Fabrication
@@ -65,7 +69,7 @@ TOOL_MARGIN = 1.3
 # A roof designed at exactly OVERHANG_DEG must pass despite rounding in its normals.
 _ANGLE_TOL = 1e-6
 
-NAMES = ("min_wall", "max_slope", "tool_radius", "overhang", "cavity_overhang",
+NAMES = ("min_wall", "max_slope", "tool_radius", "tool_axis", "overhang", "cavity_overhang",
          "build_volume", "mesh_valid", "drain", "cavity_access")
 
 
@@ -96,12 +100,13 @@ def run_checks(cyl: Cylinder, heights: np.ndarray, inner_vertices: np.ndarray, i
         _min_wall(fields, fab),
         _max_slope(fields, fab),
         _tool_radius(fields, fab),
+        tool_axis(fields, fab),
         _overhang(fields, fab),
         _cavity_overhang(iv, fi, fab),
         _build_volume(sv, fab),
         _mesh_valid(mesh, self_intersections),
-        _drain(mesh, sv, sf, light, fields, fab),
-        _cavity_access(iv, fields, fab),
+        _drain(mesh, sv, sf, light, fab),
+        cavity_access(iv, fi, fab),
     ]
 
 
@@ -184,6 +189,10 @@ def _max_slope(f: Fields, fab: Fabrication) -> dict:
     value = float(f.slope[i, j])
     note = (f"tilt of the outer normal from the radial direction; "
             f"{slope_cells(f, fab).mean() * 100:.2f} % of the surface above {fab.max_slope_deg} deg")
+    if fab.process == "cnc4":
+        note += ". On the rotary axis the tool axis is radial: this is the slope against the tool axis"
+    elif fab.process == "cnc3":
+        note += " (the design's limit; the slope against the 3-axis tool is tool_axis)"
     return _result("max_slope", value, fab.max_slope_deg, "deg", value <= fab.max_slope_deg,
                    worst=_cell_place(f, int(i), int(j)), note=note)
 
@@ -320,7 +329,7 @@ def _mesh_valid(m: MeshReport, self_intersections: bool) -> dict:
     return _result("mesh_valid", value, 0, "defects", value == 0, worst=worst, note=note)
 
 
-def _drain(m: MeshReport, sv, sf, light, f: Fields, fab: Fabrication) -> dict:
+def _drain(m: MeshReport, sv, sf, light, fab: Fabrication) -> dict:
     from .inner import winding_number
 
     voids = np.flatnonzero(m.shell_volume < 0)
@@ -347,47 +356,7 @@ def _drain(m: MeshReport, sv, sf, light, f: Fields, fab: Fabrication) -> dict:
                  "supports or raft with a gap under the bore.")
     elif fab.process in ("cnc3", "cnc4"):
         note += " A sealed void cannot be milled at all."
-        note += " " + setups_note(f, fab)
     return _result("drain", len(voids), 0, "voids", passed, worst=worst, note=note)
-
-
-def setups_note(f: Fields, fab: Fabrication) -> str:
-    """How the outer surface is reached by the tool, for CNC profiles."""
-    if fab.process == "cnc4":
-        return ("On a rotary (4th) axis along the lamp axis a radial heightmap has no undercuts: "
-                "every point is reached radially in one setup (plus the cavity, see cavity_access).")
-    if fab.process != "cnc3":
-        return ""
-    # Tool axes perpendicular to the lamp axis (the part lies on its side, turned between
-    # setups).  The angle between the surface normal and the nearest tool axis: 90 deg is a
-    # wall parallel to the tool, reached only by the flank with poor finish.
-    n = f.normal.reshape(-1, 3)
-    out = []
-    for setups in (2, 4):
-        ang = np.arange(setups) * (2 * np.pi / setups)
-        axes = np.stack([np.cos(ang), np.sin(ang), np.zeros(setups)], axis=1)
-        worst = np.degrees(np.arccos(np.clip((n @ axes.T).max(axis=1), -1, 1))).max()
-        out.append(f"{setups} setups: steepest {worst:.0f} deg from the tool axis")
-    return ("3-axis: the part lies on its side and is turned between setups; at least 2 setups "
-            "(from opposite sides), and the sides near 90 deg to the tool are cut by the flank. "
-            + "; ".join(out) + " (occlusion by bumps not checked).")
-
-
-def _cavity_access(iv, f: Fields, fab: Fabrication) -> dict:
-    if fab.process == "sla":
-        return _result("cavity_access", None, None, "mm", True, applies=False,
-                       note="printed, not cut: any cavity shape can be built")
-    rho = np.hypot(iv[:, 0], iv[:, 1])
-    k = int(np.argmax(rho))
-    value = float(rho[k])
-    passed = value <= fab.mount_radius_mm + 1e-6
-    note = (f"widest cavity radius {value:.2f} mm vs the bore radius {fab.mount_radius_mm} mm that is "
-            f"its only way in.")
-    if not passed:
-        note += (" A tool entering through the bore cannot reach the wider cavity: make the lens in "
-                 "two parts (split across the cavity, bonded with index-matched adhesive), or open "
-                 f"the base to the cavity (mount_radius_mm >= {value:.2f}).")
-    return _result("cavity_access", value, fab.mount_radius_mm, "mm", passed, worst=_place(iv[k]), note=note)
 
 
 # ---------------------------------------------------------------- painting
@@ -399,7 +368,7 @@ def paint_checks(path_png, cyl: Cylinder, heights: np.ndarray, inner_vertices: n
     """Write ``checks.png``: one panel per check, the unrolled outer surface (u across from
     0 to 360 deg, z up) coloured by wall thickness, failing cells red, the worst place
     ringed.  Arguments as ``run_checks``; ``results`` its output."""
-    from .checks_paint import cavity_cells, paint
+    from .checks_paint import access_cells, cavity_cells, paint
 
     if fields is None:
         fields = cached_fields(cyl, heights, inner_vertices, inner_faces, fab.mount_radius_mm, samples)
@@ -410,7 +379,9 @@ def paint_checks(path_png, cyl: Cylinder, heights: np.ndarray, inner_vertices: n
         "max_slope": slope_cells(fields, fab),
         "tool_radius": tool_cells(fields, fab),
         "overhang": overhang_cells(fields, fab),
+        "tool_axis": tool_axis_cells(fields, fab),
         "cavity_overhang": cavity_cells(iv, fi, fields, fab),
+        "cavity_access": access_cells(iv, fi, fields, fab),
     }
     # The caps are not on the unrolled side: a thin cap paints its edge row.
     if fields.wall_top < fab.min_wall_mm:

@@ -133,18 +133,33 @@ def _header(Image, ImageDraw, font, w, fab, results, vmax):
 
 def cavity_cells(iv, fi, f: Fields, fab: Fabrication) -> np.ndarray:
     """(mu, mv) bool: cavity overhang faces splatted onto the (u, z) grid of the outer
-    surface at their corners and centroids (the cavity is not on that surface; this
-    marks the heights and directions where it overhangs)."""
+    surface (the cavity is not on that surface; this marks the heights and directions
+    where it overhangs)."""
     from .checks import OVERHANG_DEG, _ANGLE_TOL, cavity_overhang_faces
 
-    out = np.zeros(f.wall.shape, bool)
     if fab.process != "sla":
-        return out
+        return np.zeros(f.wall.shape, bool)
     angle, _ = cavity_overhang_faces(iv, fi)
-    bad = angle > OVERHANG_DEG + _ANGLE_TOL
-    if not bad.any():
+    return _splat_faces(iv, fi[angle > OVERHANG_DEG + _ANGLE_TOL], f)
+
+
+def access_cells(iv, fi, f: Fields, fab: Fabrication) -> np.ndarray:
+    """(mu, mv) bool: cavity faces hidden from a tool entering through the bore, splatted
+    onto the (u, z) grid of the outer surface as ``cavity_cells``."""
+    from .checks_cnc import hidden_cavity
+
+    if fab.process == "sla":
+        return np.zeros(f.wall.shape, bool)
+    hidden, _, _ = hidden_cavity(iv, fi, fab.mount_radius_mm)
+    return _splat_faces(iv, fi[hidden], f)
+
+
+def _splat_faces(iv, faces, f: Fields) -> np.ndarray:
+    """(mu, mv) bool: the cells at the faces' corners and centroids, by angle and height."""
+    out = np.zeros(f.wall.shape, bool)
+    if not len(faces):
         return out
-    tri = iv[fi[bad]]
+    tri = iv[faces]
     pts = np.concatenate([tri.reshape(-1, 3), tri.mean(axis=1)])
     mu, mv = out.shape
     u = np.arctan2(pts[:, 1], pts[:, 0]) % (2 * np.pi)

@@ -35,21 +35,26 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fab", default="sla_resin", help="fabrication profile name or .toml path (default: sla_resin)")
 
 
-def _targets(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--target", default="", help="image projected on every wall (PNG or JPEG)")
+def _targets(p: argparse.ArgumentParser, with_image: bool = True) -> None:
+    if with_image:
+        p.add_argument("--target", default="", help="image projected on every wall (PNG or JPEG)")
     for wall in WALLS:
         p.add_argument(f"--target-{wall}", default="", help=f"image for the {wall} only")
+    p.add_argument("--text", default="", help='words to project instead of an image, e.g. "Happy birthday"')
+    p.add_argument("--panorama", default="", help="a 360° panorama (PNG or JPEG) wrapped around the room")
 
 
 def parser() -> argparse.ArgumentParser:
     top = argparse.ArgumentParser(prog="lampfab", description="Design a caustic projection lamp from an image.")
     sub = top.add_subparsers(dest="command", required=True)
     lamp = sub.add_parser("lamp", help="run every stage for one image")
-    lamp.add_argument("image", help="the target image (PNG or JPEG)")
-    lamp.add_argument("--out", default="", help="build folder (default: build/<image stem>)")
+    lamp.add_argument("image", nargs="?", default="", help="the target image (PNG or JPEG)")
+    lamp.add_argument("--out", default="", help="build folder (default: build/<image stem>, build/text, "
+                                                "build/<panorama stem>)")
     lamp.add_argument("--profile", default="default")
     lamp.add_argument("--fab", default="sla_resin")
     lamp.add_argument("--allow-fail", action="store_true", help="go on after a failed fabrication check")
+    _targets(lamp, with_image=False)
     for name, text in STAGE_HELP.items():
         p = sub.add_parser(name, help=text, description=text)
         _common(p)
@@ -79,11 +84,12 @@ def run_stage(name: str, args: argparse.Namespace) -> None:
 
     build = pipeline.Build.open(args.out, args.profile, args.fab)
     if name == "prepare":
-        pipeline.prepare(build, args.target, _per_wall(args))
+        pipeline.prepare(build, args.target, _per_wall(args), args.text, args.panorama)
     elif name == "check":
         pipeline.check(build, args.allow_fail)
     elif name == "settings":
-        pipeline.snapshot(build, build.path("settings.json"), _per_wall(args, with_default=True))
+        images = {**_per_wall(args, with_default=True), "panorama": args.panorama}
+        pipeline.snapshot(build, build.path("settings.json"), images, args.text)
     elif name == "summary":
         pipeline.summary(build)
     else:
@@ -101,13 +107,21 @@ def _profiles() -> None:
 
 def _lamp(args: argparse.Namespace) -> None:
     from . import pipeline
+    from .errors import LampfabError
 
-    out = Path(args.out or Path("build") / Path(args.image).stem)
+    if not (args.image or args.text or args.panorama):
+        raise LampfabError('nothing to project: give an image (lampfab lamp photo.png), --text "..." '
+                           "or --panorama pano.png")
+    stem = "text" if args.text else Path(args.panorama or args.image).stem
+    out = Path(args.out or Path("build") / stem)
     build = pipeline.Build.open(out, args.profile, args.fab)
+    # Reads every input first: a bad one stops here, before any stage writes a file.
+    pipeline.snapshot(build, build.path("settings.json"),
+                      {**_per_wall(args), "all": args.image, "panorama": args.panorama}, args.text)
     for name in pipeline.STAGES:
         t0 = time.time()
         if name == "prepare":
-            pipeline.prepare(build, args.image, {})
+            pipeline.prepare(build, args.image, _per_wall(args), args.text, args.panorama)
         elif name == "check":
             pipeline.check(build, args.allow_fail)
         else:

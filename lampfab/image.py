@@ -108,6 +108,7 @@ def load_target(path: str | os.PathLike) -> np.ndarray:
                     raise LampfabError(f"{where}: the image has no pixels ({w}x{h}); {accepted}")
                 im.load()
                 im = ImageOps.exif_transpose(im)
+                has_alpha = "A" in im.mode or "a" in im.mode or "transparency" in im.info
                 lum = _luminance(im)
     except LampfabError:
         raise
@@ -126,7 +127,8 @@ def load_target(path: str | os.PathLike) -> np.ndarray:
 
     lo, hi = float(lum.min()), float(lum.max())
     if hi - lo < CONSTANT_TARGET_RANGE:
-        raise LampfabError(f"{where}: the image is uniform (luminance {lo:.4g} to {hi:.4g}), "
+        alpha = " after compositing its transparency over black (transparent is dark)" if has_alpha else ""
+        raise LampfabError(f"{where}: the image is uniform (luminance {lo:.4g} to {hi:.4g}){alpha}, "
                            f"nothing to project; use an image with light and dark areas "
                            f"(white shapes on black work best)")
     return lum

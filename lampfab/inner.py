@@ -64,7 +64,10 @@ def load_inner(path: str | Path | None, scale: float, light_mm: np.ndarray,
         raise LampfabError(f"{where}: cannot read it ({type(exc).__name__}: {exc})") from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise LampfabError(f"{where}: holds no triangles")
-    mesh = trimesh.Trimesh(loaded.vertices * scale, loaded.faces, process=False)
+    vertices = np.asarray(loaded.vertices, np.float64)
+    if path.suffix.lower() == ".glb":  # glTF is metres with Y up, by its specification
+        vertices = 1000.0 * np.stack([vertices[:, 0], -vertices[:, 2], vertices[:, 1]], axis=1)
+    mesh = trimesh.Trimesh(vertices * scale, loaded.faces, process=False)
     mesh.merge_vertices(digits_vertex=int(-np.log10(tolerances.WELD_MM)))
     mesh.update_faces(mesh.unique_faces())
     mesh.update_faces(mesh.nondegenerate_faces())
@@ -78,7 +81,8 @@ def load_inner(path: str | Path | None, scale: float, light_mm: np.ndarray,
     if mesh.volume < 0:
         mesh.invert()
     if abs(winding_number(mesh.vertices, mesh.faces, light_mm) - 1.0) > 0.5:
-        raise LampfabError(f"{where}: does not enclose the light at {np.round(light_mm, 2).tolist()} mm")
+        raise LampfabError(f"{where}: does not enclose the light at {np.round(light_mm, 2).tolist()} mm (the "
+                           f"LED must sit inside the cavity); move [lens] light_height_mm or the mesh")
     r = np.hypot(mesh.vertices[:, 0], mesh.vertices[:, 1])
     limit = outer_radius_mm - max_offset_mm - tolerances.MIN_GAP_MM
     if r.max() > limit:

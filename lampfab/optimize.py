@@ -12,6 +12,7 @@ averages out over a coarse node's footprint, and the finest level adds detail la
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import signal
 import time
@@ -20,12 +21,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import lens, losses, scene, surface
+from .errors import LampfabError
 from .profile import Optimize
 from .room import Wall
 
-# Losses above this multiple of the best loss so far count as an explosion: the
-# step is undone and the learning rate halved (the source's GD diverges this way).
+# Losses above this multiple of the best loss so far (same view, same level) count as
+# an explosion (the source's GD diverges this way).
 EXPLODE_FACTOR = 20.0
+# After a numerical fault the run goes back to the last good checkpoint with the
+# learning rate halved; after this many halvings in a row it stops with a message
+# (1/1024 of the profile's rate: a step that still fails is not a step-size problem).
+MAX_FALLBACKS = 10
 # Slopes may exceed the fabrication limit by this much between steps (a safety net:
 # the slope penalty keeps steps inside); the final surface is projected exactly.
 # Projecting every step to the limit undoes the steps.
@@ -46,19 +52,27 @@ class State:
     v: np.ndarray | None = None
     adam_t: int = 0
     log: list = field(default_factory=list)  # rows: (step, level, view, loss, seconds)
+    faults: list = field(default_factory=list)  # rows: (step, learning-rate scale after falling back)
 
     def to_arrays(self) -> dict:
         return {"heights": self.heights, "level": self.level, "step": self.step,
                 "lr_scale": self.lr_scale, "m": np.zeros(0) if self.m is None else self.m,
                 "v": np.zeros(0) if self.v is None else self.v, "adam_t": self.adam_t,
-                "log": np.asarray(self.log, np.float64).reshape(-1, 5)}
+                "log": np.asarray(self.log, np.float64).reshape(-1, 5),
+                "faults": np.asarray(self.faults, np.float64).reshape(-1, 2)}
 
     @staticmethod
     def from_arrays(a: dict) -> "State":
         moments = (a["m"], a["v"]) if a["m"].size else (None, None)
         return State(heights=a["heights"], level=int(a["level"]), step=int(a["step"]),
                      lr_scale=float(a["lr_scale"]), m=moments[0], v=moments[1], adam_t=int(a["adam_t"]),
-                     log=[tuple(r) for r in a["log"]])
+                     log=[tuple(r) for r in a["log"]], faults=[tuple(r) for r in a.get("faults", [])])
+
+    def copy(self) -> "State":
+        return dataclasses.replace(self, heights=self.heights.copy(),
+                                   m=None if self.m is None else self.m.copy(),
+                                   v=None if self.v is None else self.v.copy(),
+                                   log=list(self.log), faults=list(self.faults))
 
 
 def level_grids(opt: Optimize) -> list[tuple[int, int]]:
@@ -78,7 +92,15 @@ def level_steps(opt: Optimize) -> list[int]:
 
 
 class Interrupted(Exception):
-    """SIGINT/SIGTERM arrived; the state was checkpointed."""
+    """SIGINT/SIGTERM arrived; the state at ``step`` was checkpointed."""
+
+    def __init__(self, signum: int, step: int):
+        super().__init__(signum, step)
+        self.step = step
+
+
+class NumericalFault(LampfabError):
+    """Steps keep failing (NaN, Inf, an exploding loss) even with a much smaller step."""
 
 
 class Optimizer:
@@ -132,69 +154,113 @@ class Optimizer:
         v_hat = state.v / (1 - b2**state.adam_t)
         return -lr * m_hat / (np.sqrt(v_hat) + eps)
 
-    def run(self, state: State, on_checkpoint, on_preview, progress) -> State:
+    def run(self, state: State, on_checkpoint, on_preview, progress, deadline: float | None = None) -> State:
         """Optimize from ``state`` to the end, calling ``on_checkpoint(state)`` every
-        ``checkpoint_every`` steps and on SIGINT/SIGTERM (then raising Interrupted)."""
+        ``checkpoint_every`` steps and on SIGINT/SIGTERM (then raising Interrupted).
+        With a ``deadline`` (time.time() seconds) it returns at the first step that
+        ends past it, before the final projection (the benchmark's time budgets).
+
+        A numerical fault (a NaN or Inf in the loss, the gradient or the new heights,
+        or an exploding loss) is reported through ``progress`` with its step, and the
+        run goes back to the last good checkpoint with the learning rate halved;
+        NumericalFault after ``MAX_FALLBACKS`` halvings in a row.  The heights stay a
+        radial graph clipped to +-max_offset_mm, which the inner layer clears by
+        ``tolerances.MIN_GAP_MM`` (checked when it is loaded), so a step cannot make
+        the surface cross itself or the inner layer; the check stage measures the walls.
+        """
         opt = self.opt
         grids = level_grids(opt)
-        steps = level_steps(opt)
+        ends = np.cumsum(level_steps(opt))
         stop = {"signal": None}
 
         def handler(signum, _frame):
             stop["signal"] = signum
 
         old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+        good = state.copy()
+        fallbacks = 0
+        best: dict = {}
+        level = None
         try:
-            full = grids[-1]
-            for level in range(state.level, opt.levels):
+            while state.step < opt.iterations:
+                if stop["signal"] is not None:
+                    on_checkpoint(state)
+                    raise Interrupted(stop["signal"], state.step)
+                if level != int(np.searchsorted(ends, state.step, side="right")):
+                    level = int(np.searchsorted(ends, state.step, side="right"))
+                    best = _best_losses(state.log, level)
                 grid = grids[level]
                 if state.m is None or state.m.shape != grid:
-                    state.m = np.zeros(grid)
-                    state.v = np.zeros(grid)
-                    state.adam_t = 0
+                    state.m, state.v, state.adam_t = np.zeros(grid), np.zeros(grid), 0
                 state.level = level
-                end = sum(steps[: level + 1])
-                best = {}
-                for row in state.log:
-                    if row[1] == level:
-                        best[row[2]] = min(best.get(row[2], math.inf), row[3])
-                while state.step < end:
-                    t0 = time.time()
-                    views = losses.views_for_step(opt.schedule, state.step, len(self.walls))
-                    loss, grad_full = self.gradient(state.heights, views, seed=opt.seed * 100_003 + state.step * 17)
-                    penalty, penalty_grad = surface.slope_penalty(self.cyl, state.heights,
-                                                                  self.max_tilt - PENALTY_MARGIN_DEG)
-                    loss += opt.slope_weight * penalty
-                    grad = surface.sample_adjoint(grad_full + opt.slope_weight * penalty_grad, *grid)
-                    if not (np.isfinite(loss) and np.all(np.isfinite(grad))):
-                        state.lr_scale *= 0.5
-                        progress(state, loss, "non-finite loss or gradient: step skipped, learning rate halved")
-                        state.step += 1
-                        continue
-                    key = views[0] if len(views) == 1 else -1
-                    if loss > EXPLODE_FACTOR * best.get(key, math.inf):
-                        state.lr_scale *= 0.5
-                        progress(state, loss, "loss exploded: step undone, learning rate halved")
-                        state.step += 1
-                        continue
-                    best[key] = min(best.get(key, math.inf), loss)
-                    state.heights = self.makeable(state.heights + surface.sample(self.step_delta(state, grad), *full),
-                                                  STEP_SLACK_DEG)
-                    state.log.append((state.step, level, key, loss, time.time() - t0))
-                    state.step += 1
-                    progress(state, loss, "")
-                    if state.step % opt.preview_every == 0 or state.step == sum(steps):
-                        on_preview(state)
-                    if state.step % opt.checkpoint_every == 0:
-                        on_checkpoint(state)
-                    if stop["signal"] is not None:
-                        on_checkpoint(state)
-                        raise Interrupted(stop["signal"])
+                t0 = time.time()
+                views = losses.views_for_step(opt.schedule, state.step, len(self.walls))
+                key = views[0] if len(views) == 1 else -1
+                loss, grad_full = self.gradient(state.heights, views, seed=opt.seed * 100_003 + state.step * 17)
+                penalty, penalty_grad = surface.slope_penalty(self.cyl, state.heights,
+                                                              self.max_tilt - PENALTY_MARGIN_DEG)
+                loss += opt.slope_weight * penalty
+                grad = surface.sample_adjoint(grad_full + opt.slope_weight * penalty_grad, *grid)
+                fault = _fault(loss, grad, best.get(key, math.inf))
+                if fault is None:  # on a fault the state is replaced, moments included
+                    heights = self.makeable(state.heights + surface.sample(self.step_delta(state, grad), *grids[-1]),
+                                            STEP_SLACK_DEG)
+                    fault = None if np.all(np.isfinite(heights)) else "the new heights are not finite"
+                if fault is not None:
+                    fallbacks += 1
+                    if fallbacks > MAX_FALLBACKS:
+                        raise NumericalFault(
+                            f"optimize: step {state.step}: {fault}, even after halving the learning rate "
+                            f"{MAX_FALLBACKS} times from the checkpoint at step {good.step}; lower [optimize] "
+                            f"learning_rate or check the target image")
+                    lr_scale = state.lr_scale * 0.5
+                    message = (f"{fault}; back to the last good checkpoint (step {good.step}) with the "
+                               f"learning rate x{lr_scale:g}")
+                    at = state.step
+                    state = good.copy()
+                    state.lr_scale = lr_scale
+                    state.faults.append((at, lr_scale))
+                    level = None
+                    progress(state, loss, f"step {at}: {message}")
+                    continue
+                state.heights = heights
+                best[key] = min(best.get(key, math.inf), loss)
+                state.log.append((state.step, level, key, loss, time.time() - t0))
+                state.step += 1
+                progress(state, loss, "")
+                if state.step % opt.preview_every == 0 or state.step == opt.iterations:
+                    on_preview(state)
+                if state.step % opt.checkpoint_every == 0:
+                    on_checkpoint(state)
+                    good = state.copy()
+                    fallbacks = 0
+                if deadline is not None and time.time() >= deadline:
+                    return state
         finally:
             for s, h in old.items():
                 signal.signal(s, h)
         state.heights = self.makeable(state.heights)
         return state
+
+
+def _best_losses(log: list, level: int) -> dict:
+    """The lowest loss per view key among the logged steps of ``level``."""
+    best: dict = {}
+    for row in log:
+        if row[1] == level:
+            best[row[2]] = min(best.get(row[2], math.inf), row[3])
+    return best
+
+
+def _fault(loss: float, grad: np.ndarray, best: float) -> str | None:
+    """What is numerically wrong with a step's loss and gradient, or None."""
+    if not np.isfinite(loss):
+        return f"the loss is {loss}"
+    if not np.all(np.isfinite(grad)):
+        return f"the gradient has {int(np.sum(~np.isfinite(grad)))} NaN or Inf values"
+    if loss > EXPLODE_FACTOR * best:
+        return f"the loss exploded ({loss:.4g}, over {EXPLODE_FACTOR:g}x the best so far, {best:.4g})"
+    return None
 
 
 class SeedOptimizer(Optimizer):

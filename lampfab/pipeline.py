@@ -7,6 +7,7 @@ call these.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,6 +50,18 @@ class Build:
     def settings(self) -> dict:
         return {"design": profile.as_dict(self.design), "fabrication": profile.as_dict(self.fab)}
 
+    def begin(self, stage: str, inputs: dict) -> artifacts.StageReport:
+        """Start a stage: refuse it with a message if it needs more memory than is
+        free, then open its report, with the profiles and the inner layer's file among
+        the hashed inputs."""
+        from . import resources
+        from .inner import DEFAULT_INNER
+
+        resources.check_memory(stage, self.design)
+        files = {"design_profile": self.design.path, "fabrication_profile": self.fab.path,
+                 "inner_layer": self.design.lens.inner_mesh or DEFAULT_INNER}
+        return artifacts.StageReport(stage, {**inputs, **files}, self.settings(), seed=self.design.optimize.seed)
+
     def inner(self):
         from . import inner
 
@@ -74,30 +87,80 @@ def _log(msg: str) -> None:
     print(msg, flush=True)
 
 
+def _per_kind(step):
+    """The one place that picks the lens kind: for a panel (``[lens] kind = "panel"``)
+    ``panel_stages`` does ``step`` its own way, under the same name."""
+    @functools.wraps(step)
+    def run(build: Build, *args, **kwargs):
+        if build.design.lens.kind == "panel":
+            from . import panel_stages
+
+            return getattr(panel_stages, step.__name__)(build, *args, **kwargs)
+        return step(build, *args, **kwargs)
+    return run
+
+
 # -- settings -------------------------------------------------------------------------
-def snapshot(build: Build, path, images: dict[str, str]) -> bool:
-    """Write the resolved profiles and the input images' hashes to ``path`` only if
-    they changed (Make's prerequisite for every stage, so editing a profile or an image
-    redoes what depends on it, and nothing else).  Returns whether it wrote."""
+def snapshot(build: Build, path, images: dict[str, str], text: str = "") -> bool:
+    """Write the resolved profiles, the hashes of the input images and of the inner
+    layer's file, and the target text to ``path`` only if they changed (Make's
+    prerequisite for every stage, so editing a profile, an image or the text redoes
+    what depends on it, and nothing else).  Before writing, every input is read as the
+    stages will read it, so a bad one stops here, with one line and no files.
+    Returns whether it wrote."""
     hashes = {}
     for wall, image_path in sorted(images.items()):
         if image_path:
             if not Path(image_path).is_file():
-                raise LampfabError(f"{image_path}: image not found")
+                raise LampfabError(f"{image_path}: image not found; give the path of a PNG or JPEG image")
             hashes[wall] = {"path": image_path, "sha256": artifacts.file_sha256(image_path)}
-    text = json.dumps({**build.settings(), "images": hashes}, indent=2, sort_keys=True) + "\n"
+    inner_mesh = build.design.lens.inner_mesh
+    if inner_mesh and Path(inner_mesh).is_file():
+        hashes["inner_layer"] = {"path": inner_mesh, "sha256": artifacts.file_sha256(inner_mesh)}
+    body = json.dumps({**build.settings(), "images": hashes, "text": text}, indent=2, sort_keys=True) + "\n"
     path = Path(path)
-    if path.exists() and path.read_text() == text:
+    if path.exists() and path.read_text() == body:
         return False
+    _check_inputs(build, images, text)
     with artifacts.atomic_path(path) as tmp:
-        tmp.write_text(text)
+        tmp.write_text(body)
     return True
+
+
+def _check_inputs(build: Build, images: dict[str, str], text: str) -> None:
+    """Read the images and the inner layer as the stages will, and check that every
+    stage fits in the memory that is free; raise LampfabError."""
+    from . import image, resources, targets
+
+    per_wall = {w.name: images[w.name] for w in build.walls if images.get(w.name)}
+    _target_sources(build, images.get("all", ""), per_wall, text, images.get("panorama", ""))
+    for stage in STAGES:
+        resources.check_memory(stage, build.design)
+
+    for key, image_path in images.items():
+        if image_path:
+            luminance = image.load_target(image_path)
+            if key == "panorama":
+                targets.check_panorama(luminance, image_path)
+    if build.design.lens.kind == "cylinder":  # a panel has no inner layer
+        build.inner()
+
+
+def _target_sources(build: Build, target: str, per_wall: dict[str, str], text: str,
+                    panorama: str) -> tuple[str, dict[str, str]]:
+    """(what the walls without an image of their own show, {wall: its source}); raises
+    LampfabError where the walls' sources are missing or contradict each other."""
+    if text and panorama:
+        raise LampfabError("TEXT and PANORAMA both given: choose one (per-wall TARGET_<WALL> images may be added)")
+    common = f"text: {text}" if text else f"panorama {panorama}" if panorama else target
+    sources = {w.name: per_wall.get(w.name) or common for w in build.walls}
+    if not all(sources.values()):
+        raise LampfabError("no target image given: set TARGET=path/to/image.png (or TEXT=\"...\" or PANORAMA=...)")
+    return common, sources
 
 
 def summary(build: Build) -> None:
     """One line per stage: wall time and its key figure."""
-    keys = {"init": "method", "optimize": "final_loss", "solid": "volume_mm3", "check": "passed",
-            "export": "bspline_deviation_mm"}
     names = {"check": "checks"}
     total = 0.0
     for stage in STAGES:
@@ -106,37 +169,70 @@ def summary(build: Build) -> None:
             continue
         data = artifacts.read_json(p)
         total += data.get("wall_time_s", 0.0)
-        figs = data["figures"]
-        if stage == "verify":
-            key = ", ".join(f"{n} r {f['pearson']:.2f}" for n, f in figs["walls"].items())
-        elif stage == "plan":
-            key = f"{1 - figs['lost_share']:.0%} of the light on the wall planes"
-        else:
-            k = keys.get(stage)
-            key = f"{k} {_fmt(figs.get(k))}" if k else ""
-        print(f"{stage:9s} {data.get('wall_time_s', 0):7.1f} s  {key}")
+        print(f"{stage:9s} {data.get('wall_time_s', 0):7.1f} s  {_key_figure(stage, data['figures'])}")
     print(f"{'total':9s} {total:7.1f} s  -> {build.path('report.html')}")
 
 
-# -- 1. prepare ---------------------------------------------------------------------
-def prepare(build: Build, target: str, per_wall: dict[str, str]) -> dict:
-    """One linear-luminance target per wall, letterboxed to the wall's aspect ratio."""
-    from . import image
+def _key_figure(stage: str, figs: dict) -> str:
+    """A stage's headline, in words, for the summary."""
+    if stage == "prepare":
+        sources = {k[:-len("_source")]: v for k, v in figs.items() if k.endswith("_source")}
+        return "; ".join(f"{v} on {', '.join(w for w in sources if sources[w] == v)}"
+                         for v in dict.fromkeys(sources.values()))
+    if stage == "plan":
+        return f"{1 - figs['lost_share']:.0%} of the light on the wall planes"
+    if stage == "init":
+        tilt = figs.get("max_tilt_deg")
+        return figs["method"] + (f", max tilt {tilt:.1f}°" if tilt is not None else "")
+    if stage == "optimize":
+        loss = figs.get("final_loss")
+        return f"{figs['steps']} steps" + (f", final loss {loss:.3g}" if loss is not None else "")
+    if stage == "solid":
+        return f"{figs['volume_mm3'] / 1000:.0f} cm³, {figs['triangles']} triangles"
+    if stage == "check":
+        failed = [c["name"] for c in figs["checks"] if c["applies"] and not c["passed"]]
+        return f"FAILED: {', '.join(failed)}" if failed else "all checks pass"
+    if stage == "export":
+        return (f"lens.stl {figs['stl_bytes'] / 1e6:.1f} MB, lens.step {figs['step_bytes'] / 1e6:.1f} MB, "
+                f"B-spline within {figs['bspline_deviation_mm'] * 1000:.2g} µm")
+    return ", ".join(f"{n} r {f['pearson']:.2f} (LED {f['led_pearson']:.2f})" for n, f in figs["walls"].items())
 
-    sources = {w.name: per_wall.get(w.name) or target for w in build.walls}
-    if not all(sources.values()):
-        raise LampfabError("no target image given: set TARGET=path/to/image.png")
-    report = artifacts.StageReport("prepare", {f"image_{k}": v for k, v in sources.items()}, build.settings())
-    loaded = {}
+
+# -- 1. prepare ---------------------------------------------------------------------
+def prepare(build: Build, target: str, per_wall: dict[str, str], text: str = "", panorama: str = "") -> dict:
+    """One linear-luminance target per wall, letterboxed to the wall's aspect ratio.
+
+    Each wall takes its own image if given, else ``text``, else its slice of
+    ``panorama``, else ``target``."""
+    from . import image, targets
+
+    common, sources = _target_sources(build, target, per_wall, text, panorama)
+    inputs = {f"image_{k}": v for k, v in sources.items()}  # text is no file: the report leaves it out
+    report = build.begin("prepare", {**inputs, "panorama": panorama})
+    loaded, prepared = {}, {}
+    if panorama:
+        loaded[common] = image.load_target(panorama)
+        targets.check_panorama(loaded[common], panorama)
     for wall in build.walls:
         src = sources[wall.name]
-        if src not in loaded:
-            loaded[src] = image.load_target(src)
-        img = image.letterbox(loaded[src], *room.image_shape(wall, TARGET_PX))
-        artifacts.write_linear_png16(build.path("targets", f"{wall.name}.png"), img)
-        artifacts.write_png(build.path("targets", f"{wall.name}_preview.png"), img, normalize=False)
+        shape = room.image_shape(wall, TARGET_PX)
+        if src == common and text:
+            img = targets.text_image(text, *shape)
+        elif src == common and panorama:
+            d = build.design.room
+            img = targets.panorama_slice(loaded[common], wall, build.light, d.wall_distance_mm,
+                                         d.target_center_z_mm, *shape)
+        else:
+            if src not in loaded:
+                loaded[src] = image.load_target(src)
+            img = image.letterbox(loaded[src], *shape)
+        prepared[wall.name] = img
         report.figure(**{f"{wall.name}_mean_luminance": float(img.mean()),
                          f"{wall.name}_source": str(src)})
+    # Written only once every wall's image has been read: a bad one leaves no files.
+    for name, img in prepared.items():
+        artifacts.write_linear_png16(build.path("targets", f"{name}.png"), img)
+        artifacts.write_png(build.path("targets", f"{name}_preview.png"), img, normalize=False)
     report.write(build.path("prepare.json"))
     return report.data
 
@@ -148,20 +244,17 @@ def plan(build: Build) -> dict:
     Each wall plane is rendered three times larger than its target rectangle so the
     report shows light that would fall outside it.
     """
-    from . import lens, trace
+    from . import trace
 
     d = build.design
-    report = artifacts.StageReport("plan", {}, build.settings())
-    iv, if_ = build.inner()
-    nu, nv = d.optimize.grid_u, d.optimize.grid_v
-    verts, faces = lens.optical_mesh(build.cylinder, np.zeros((nu, nv)), d.optimize.tessellation, iv, if_)
-    scene = trace.MeshScene(verts, faces)
+    report = build.begin("plan", {})
+    scene, emitter = _plain_optics(build)
     walls = build.walls
     big = [room.Wall(w.name, w.origin - w.right - w.down, 3 * w.right, 3 * w.down) for w in walls]
     px = d.verify.image_px
     shapes = [room.image_shape(w, 3 * px) for w in big]
     images, info = trace.render_walls(scene, build.light, 0.0, build.fab.ior, big, shapes,
-                                      d.verify.photons, d.optimize.seed, d.verify.max_bounces)
+                                      d.verify.photons, d.optimize.seed, d.verify.max_bounces, emitter)
     figures = {"lost_share": info["lost"], "walls": {}}
     for wall, img in zip(walls, images):
         artifacts.write_png(build.path("plan", f"{wall.name}.png"), img)
@@ -184,13 +277,25 @@ def plan(build: Build) -> dict:
     return report.data
 
 
+@_per_kind
+def _plain_optics(build: Build):
+    """(the un-optimized lens as a ``trace.MeshScene``, its light's emitter: None for the LED)."""
+    from . import lens, trace
+
+    iv, if_ = build.inner()
+    grid = (build.design.optimize.grid_u, build.design.optimize.grid_v)
+    verts, faces = lens.optical_mesh(build.cylinder, np.zeros(grid), build.design.optimize.tessellation, iv, if_)
+    return trace.MeshScene(verts, faces), None
+
+
 # -- 3a. init (transport) -------------------------------------------------------------
+@_per_kind
 def init(build: Build) -> dict:
     """The first lens: transport-based (default) or the source's plain cylinder."""
     from . import transport
 
     d, opt = build.design, build.design.optimize
-    report = artifacts.StageReport("init", build.target_paths(), build.settings())
+    report = build.begin("init", build.target_paths())
     grid = (opt.grid_u, opt.grid_v)
     if opt.init == "cylinder":
         heights = np.zeros(grid)
@@ -209,6 +314,7 @@ def init(build: Build) -> dict:
 
 
 # -- 3b. optimize (the source's method) ---------------------------------------------------
+@_per_kind
 def optimize(build: Build) -> dict:
     """Refine the initial lens by gradient descent through a differentiable renderer
     (``splat``, or the source's ``seed`` ptracer); resumes from a checkpoint."""
@@ -217,12 +323,14 @@ def optimize(build: Build) -> dict:
     from . import optimize as opt_mod
 
     d, opt = build.design, build.design.optimize
-    report = artifacts.StageReport("optimize", {"init": build.path("init.npz"), **build.target_paths()},
-                                   build.settings())
+    report = build.begin("optimize", {"init": build.path("init.npz"), **build.target_paths()})
     init_heights = artifacts.read_npz(build.path("init.npz"))["heights"]
     if init_heights.shape != (opt.grid_u, opt.grid_v):
         raise LampfabError(f"{build.path('init.npz')}: grid {init_heights.shape} is not the profile's "
                            f"({opt.grid_u}, {opt.grid_v}); re-run init")
+    if not np.all(np.isfinite(init_heights)):
+        raise LampfabError(f"{build.path('init.npz')}: {int(np.sum(~np.isfinite(init_heights)))} heights are NaN or "
+                           f"Inf; re-run init (make init), and report it if it happens again")
     iv, if_ = build.inner()
     targets = build.targets(opt.sensor_px)
     from .splat import SplatOptimizer
@@ -231,6 +339,8 @@ def optimize(build: Build) -> dict:
     seed_opt = method(build.cylinder, iv, if_, build.light, build.fab.ior, build.walls, targets, opt,
                       d.lens.max_offset_mm, build.fab.max_slope_deg)
     checkpoint = build.path("checkpoint.npz")
+    for written in (checkpoint, build.path("heightmap.npz")):
+        artifacts.remove_stale_temps(written)
     state = opt_mod.State(init_heights.copy(), 0, 0)
     resumed = False
     if checkpoint.exists():
@@ -255,25 +365,33 @@ def optimize(build: Build) -> dict:
         bar.update(s.step - bar.n)
         bar.set_postfix(loss=f"{loss:.4f}", level=s.level)
         if message:
-            bar.write(f"optimize: step {s.step}: {message}")
+            bar.write(f"optimize: {message}")
 
     if state.step == 0 and opt.iterations:
         preview(state)
     try:
         state = seed_opt.run(state, save, preview, progress)
-    except opt_mod.Interrupted:
+    except opt_mod.Interrupted as exc:
         bar.close()
-        raise LampfabError(f"optimize interrupted at step {state.step}; checkpoint saved to {checkpoint}, "
+        raise LampfabError(f"optimize interrupted at step {exc.step}; checkpoint saved to {checkpoint}, "
                            f"run the same command again to resume") from None
     bar.close()
     heights = state.heights
     artifacts.write_npz(build.path("heightmap.npz"), heights=heights, radius_mm=d.lens.outer_radius_mm,
                         height_mm=d.lens.height_mm)
+    # The optimizer's own picture of its result: verify compares the exported lens with it.
+    artifacts.write_npz(build.path("optimize_render.npz"), **{
+        w.name: seed_opt.render(heights, k, seed=opt.seed + 1) for k, w in enumerate(build.walls)})
     log = np.asarray(state.log).reshape(-1, 5)
     with artifacts.atomic_path(build.path("loss.csv")) as tmp:
         np.savetxt(tmp, log, delimiter=",", header="step,level,view,loss,seconds", comments="",
                    fmt=["%d", "%d", "%d", "%.6g", "%.3f"])
-    report.figure(steps=int(state.step), resumed=resumed,
+    from . import pictures
+
+    frames = pictures.optimization_gif(build.path("previews"), [w.name for w in build.walls],
+                                       build.path("optimization.gif"))
+    report.figure(steps=int(state.step), resumed=resumed, gif_frames=frames,
+                  numerical_faults=[{"step": int(a), "learning_rate_scale": b} for a, b in state.faults],
                   final_loss=float(log[-1, 3]) if len(log) else None,
                   median_step_s=float(np.median(log[:, 4])) if len(log) else None,
                   offset_min_mm=float(heights.min()), offset_max_mm=float(heights.max()))
@@ -297,11 +415,12 @@ def load_heights(build: Build) -> np.ndarray:
 
 
 # -- 4. solid -------------------------------------------------------------------------
+@_per_kind
 def solid(build: Build) -> dict:
     """Outer shell minus inner layer and LED bore: one watertight solid in mm."""
     from . import solid as solid_mod
 
-    report = artifacts.StageReport("solid", {"heightmap": build.path("heightmap.npz")}, build.settings())
+    report = build.begin("solid", {"heightmap": build.path("heightmap.npz")})
     iv, if_ = build.inner()
     s = solid_mod.build_solid(build.cylinder, load_heights(build), build.design.optimize.tessellation,
                               iv, if_, build.fab.mount_radius_mm)
@@ -315,15 +434,9 @@ def solid(build: Build) -> dict:
 # -- 5. check -------------------------------------------------------------------------
 def check(build: Build, allow_fail: bool) -> dict:
     """Manufacturability against the fabrication profile; raises CheckFailed on a fail."""
-    from . import checks
-
-    report = artifacts.StageReport("check", {"solid": build.path("solid.npz")}, build.settings())
-    iv, if_ = build.inner()
-    heights = load_heights(build)
+    report = build.begin("check", {"solid": build.path("solid.npz")})
     sv = artifacts.read_npz(build.path("solid.npz"))
-    results = checks.run_checks(build.cylinder, heights, iv, if_, sv["vertices"], sv["faces"], build.fab, build.light)
-    checks.paint_checks(build.path("checks.png"), build.cylinder, heights, iv, if_, sv["vertices"], sv["faces"],
-                        build.fab, build.light, results)
+    results = _run_checks(build, sv["vertices"], sv["faces"])
     failed = [r for r in results if r["applies"] and not r["passed"]]
     report.figure(checks=results, passed=not failed, allowed_to_fail=allow_fail)
     for r in results:
@@ -331,6 +444,8 @@ def check(build: Build, allow_fail: bool) -> dict:
             _log(f"check: {r['name']}: {'pass' if r['passed'] else 'FAIL'} ({_fmt(r['value'])} {r['unit']}, "
                  f"limit {_fmt(r['limit'])})")
     if failed and not allow_fail:
+        # A checks.json of an earlier run with other settings must not pass for this one.
+        build.path("checks.json").unlink(missing_ok=True)
         report.write(build.path("checks.failed.json"))
         worst = failed[0]
         place = worst.get("worst") or {}
@@ -343,6 +458,19 @@ def check(build: Build, allow_fail: bool) -> dict:
     return report.data
 
 
+@_per_kind
+def _run_checks(build: Build, vertices: np.ndarray, faces: np.ndarray) -> list[dict]:
+    """Every check's result (``checks.run_checks``), and checks.png painted."""
+    from . import checks
+
+    iv, if_ = build.inner()
+    heights = load_heights(build)
+    results = checks.run_checks(build.cylinder, heights, iv, if_, vertices, faces, build.fab, build.light)
+    checks.paint_checks(build.path("checks.png"), build.cylinder, heights, iv, if_, vertices, faces,
+                        build.fab, build.light, results)
+    return results
+
+
 def _fmt(value) -> str:
     return f"{value:.3g}" if isinstance(value, float) else str(value)
 
@@ -351,24 +479,24 @@ def _fmt(value) -> str:
 def export(build: Build) -> dict:
     """lens.stl and lens.step, both read back and checked, and design.json."""
     from . import solid as solid_mod
-    from . import step, stl
+    from . import gltf, step, stl
     from .tolerances import VOLUME_REL
 
-    d, fab = build.design, build.fab
-    report = artifacts.StageReport("export", {"solid": build.path("solid.npz"),
-                                              "heightmap": build.path("heightmap.npz")}, build.settings())
+    fab = build.fab
+    report = build.begin("export", {"solid": build.path("solid.npz"), "heightmap": build.path("heightmap.npz")})
     sv = artifacts.read_npz(build.path("solid.npz"))
     stl_bytes = stl.write_stl(build.path("lens.stl"), sv["vertices"], sv["faces"])
     rv, rf = stl.read_stl(build.path("lens.stl"))
     stl_volume = solid_mod.mesh_volume(rv, rf)
+    glb_bytes = gltf.write_glb(build.path("lens.glb"), rv, rf, fab.ior)
     edges = solid_mod.edge_check(rf)
     if not (edges["watertight"] and edges["winding_consistent"] and edges["components"] == 1):
         raise LampfabError(f"{build.path('lens.stl')}: read back it is not one closed, consistently wound "
                            f"solid ({edges})")
-    iv, if_ = build.inner()
-    step_info = step.write_step(build.path("lens.step"), build.cylinder, load_heights(build), iv, if_,
-                                fab.mount_radius_mm, d.export.step_samples_u, d.export.step_samples_v,
-                                expected_volume_mm3=stl_volume)
+    slicer = stl.admesh_check(build.path("lens.stl"))         # None where admesh is not installed
+    if slicer is not None and (slicer["repairs"] or slicer["parts"] != 1):
+        raise LampfabError(f"{build.path('lens.stl')}: admesh would repair it ({slicer}); a slicer would too")
+    step_info = _write_step(build, stl_volume)
     back = step.read_step(build.path("lens.step"))
     rel = abs(back["volume_mm3"] - stl_volume) / stl_volume
     if not (back["n_solids"] == 1 and back["valid"] and back["closed"] and rel <= VOLUME_REL):
@@ -376,21 +504,39 @@ def export(build: Build) -> dict:
                            f"STL within {VOLUME_REL:.1%} ({back}, volume difference {rel:.3%})")
     design_json = {
         "units": "mm",
-        "light": {"position": build.light.tolist(), "radius": fab.led_radius_mm},
+        "light": _light_json(build),
         "material": {"name": fab.material, "ior": fab.ior},
-        "lens": {"stl": "lens.stl", "step": "lens.step"},
+        "lens": {"stl": "lens.stl", "step": "lens.step", "glb": "lens.glb"},
         "walls": [w.to_json(f"targets/{w.name}.png") for w in build.walls],
     }
     artifacts.write_json(build.path("design.json"), design_json)
-    report.figure(stl_bytes=stl_bytes, stl_volume_mm3=stl_volume, stl_triangles=int(len(rf)),
+    report.figure(stl_bytes=stl_bytes, stl_volume_mm3=stl_volume, stl_triangles=int(len(rf)), glb_bytes=glb_bytes,
                   step_bytes=step_info["file_bytes"], step_volume_mm3=back["volume_mm3"],
                   step_stl_volume_rel=rel, step_faces=back["faces"],
                   bspline_deviation_mm=step_info["deviation_mm"],
-                  bspline_poles=[step_info["poles_u"], step_info["poles_v"]])
+                  bspline_poles=[step_info["poles_u"], step_info["poles_v"]], admesh=slicer)
     _log(f"export: lens.stl {stl_bytes / 1e6:.1f} MB, lens.step {step_info['file_bytes'] / 1e6:.1f} MB, "
          f"B-spline deviation {step_info['deviation_mm'] * 1000:.3g} µm, volumes agree to {rel:.2e}")
     report.write(build.path("export.json"))
     return report.data
+
+
+@_per_kind
+def _write_step(build: Build, stl_volume_mm3: float) -> dict:
+    """lens.step, checked against the STL's volume; ``step.write_step``'s figures."""
+    from . import step
+
+    d = build.design
+    iv, if_ = build.inner()
+    return step.write_step(build.path("lens.step"), build.cylinder, load_heights(build), iv, if_,
+                           build.fab.mount_radius_mm, d.export.step_samples_u, d.export.step_samples_v,
+                           expected_volume_mm3=stl_volume_mm3)
+
+
+@_per_kind
+def _light_json(build: Build) -> dict:
+    """design.json's ``light``: the LED's centre and radius."""
+    return {"position": build.light.tolist(), "radius": build.fab.led_radius_mm}
 
 
 # -- 7. verify ------------------------------------------------------------------------
@@ -398,30 +544,81 @@ def verify(build: Build) -> dict:
     """Render the exported STL (true facets) from design.json; compare; write report.html."""
     from . import report as report_mod
     from . import verify as verify_mod
+    from .tolerances import OPTIMIZER_MATCH_R
 
     v = build.design.verify
     design_path = build.path("design.json")
-    report = artifacts.StageReport("verify", {"design": design_path, "stl": build.path("lens.stl")},
-                                   build.settings())
+    report = build.begin("verify", {"design": design_path, "stl": build.path("lens.stl")})
     figures = verify_mod.verify(design_path, build.path("verify"), v.image_px, v.photons,
                                 build.design.optimize.seed + 7, v.max_bounces)
+    if build.path("optimize_render.npz").exists():
+        agree = verify_mod.optimizer_agreement(build.path("verify"), build.path("optimize_render.npz"),
+                                               list(figures["walls"]))
+        for name, r in agree.items():
+            figures["walls"][name]["optimizer_pearson"] = r
+        figures["optimizer_match_min"] = min(agree.values())
+        figures["optimizer_match_limit"] = OPTIMIZER_MATCH_R
     for name, f in figures["walls"].items():
         _log(f"verify: {name}: Pearson r {f['pearson']:.3f}, SSIM {f['ssim']:.3f}, {f['share']:.1%} of the light "
-             f"(LED {figures['led_radius_mm']} mm: r {f['led_pearson']:.3f})")
+             f"({figures['real_light']}: r {f['led_pearson']:.3f})"
+             + (f"; r {f['optimizer_pearson']:.3f} against the optimizer's render" if "optimizer_pearson" in f else ""))
+    if figures.get("optimizer_match_min", 1.0) < OPTIMIZER_MATCH_R:
+        _log(f"verify: WARNING: the exported lens's render matches the optimizer's only to r "
+             f"{figures['optimizer_match_min']:.3f} (< {OPTIMIZER_MATCH_R})")
+    figures.update(_finishing(build))
     report.figure(**figures)
+    pictures = _report_pictures(build)
     report.write(build.path("verify.json"))
-    _write_report(build, figures, report_mod)
+    _write_report(build, figures, pictures, report_mod)
     return report.data
 
 
-def _write_report(build: Build, figures: dict, report_mod) -> None:
+@_per_kind
+def _finishing(build: Build) -> dict:
+    """The tolerance study and the post-processing guidance (``guidance``), for verify.json."""
+    from . import guidance, tolerance_study
+
+    d, v, fab = build.design, build.design.verify, build.fab
+    iv, if_ = build.inner()
+    study = tolerance_study.study(build.cylinder, load_heights(build), d.optimize.tessellation, iv, if_, build.light,
+                                  fab.ior, build.walls, build.targets(v.image_px), max(v.photons // 4, 10_000),
+                                  d.optimize.seed + 11, v.max_bounces, fab.surface_error_mm)
+    _log(f"verify: polishing allowance {'>= ' if study['allowance_at_least'] else ''}"
+         f"{study['allowance_mm'] * 1000:.0f} µm; the profile's {fab.surface_error_mm * 1000:.0f} µm costs r "
+         f"{study['profile_error_drop']:.3f}")
+    return {"tolerance": study, "guidance": guidance.advice(fab, [w.name for w in build.walls], build.light, study)}
+
+
+@_per_kind
+def _report_pictures(build: Build) -> dict:
+    """The report's own pictures in ``report/``: the glass lamp in its room, the
+    bumpy lens, the unrolled heightmap.  Returns their paths."""
+    from . import beauty, pictures, stl
+
+    v = build.design.verify
+    design = artifacts.read_json(build.path("design.json"))
+    vertices, faces = stl.read_stl(build.path("lens.stl"))
+    walls = [room.Wall.from_json(w) for w in design["walls"]]
+    flux = [artifacts.read_npz(build.path("verify", f"{w.name}.npz"))["led"] for w in walls]
+    paths = {"room": build.path("report", "room.png"), "lens": build.path("report", "lens.png"),
+             "heightmap": build.path("report", "heightmap.png")}
+    artifacts.write_png(paths["room"], beauty.room_scene(
+        vertices, faces, build.fab.ior, np.asarray(design["light"]["position"], float), build.fab.led_radius_mm,
+        walls, flux, v.scene_px, v.scene_spp, build.design.optimize.seed), normalize=False)
+    artifacts.write_png(paths["lens"], beauty.bumpy_lens(vertices, faces, v.scene_px, 4), normalize=False)
+    pictures.heightmap_map(build.cylinder, load_heights(build), [w.name for w in walls], paths["heightmap"])
+    return paths
+
+
+def _write_report(build: Build, figures: dict, pics: dict, report_mod) -> None:
     walls = []
     for name, f in figures["walls"].items():
         walls.append({"name": name, "target_png": build.path("targets", f"{name}_preview.png"),
                       "render_png": build.path("verify", f"{name}.png"),
                       "blur_png": build.path("verify", f"{name}_led.png"),
                       "pearson": f["pearson"], "ssim": f["ssim"], "share": f["share"],
-                      "blur_pearson": f["led_pearson"], "blur_ssim": f["led_ssim"], "blur_share": f["led_share"]})
+                      "blur_pearson": f["led_pearson"], "blur_ssim": f["led_ssim"], "blur_share": f["led_share"],
+                      **({"r_vs_optimizer": f["optimizer_pearson"]} if "optimizer_pearson" in f else {})})
     stage_figures = {}
     for stage in ("init", "optimize", "solid", "export"):
         p = build.path(f"{stage}.json")
@@ -430,20 +627,54 @@ def _write_report(build: Build, figures: dict, report_mod) -> None:
             flat = {k: v for k, v in data["figures"].items() if not isinstance(v, (dict, list))}
             flat["wall_time_s"] = data.get("wall_time_s")
             stage_figures[stage] = flat
+    fig = report_mod.figure_html
+    first, sections = _lens_sections(build, pics, fig)
+    if build.path("optimization.gif").exists():
+        sections.append(("Optimization", fig("The walls during optimization", build.path("optimization.gif"),
+                                             "one frame per preview step (loss per step: loss.csv)")))
     checks = build.path("checks.json") if build.path("checks.json").exists() else build.path("checks.failed.json")
-    sections = []
     if checks.exists():
         rows = "".join(
             f"<tr><td>{r['name']}</td><td class=\"{'ok' if r['passed'] else 'fail'}\">"
             f"{'pass' if r['passed'] else 'FAIL'}</td><td>{_fmt(r['value'])} {r['unit']}</td>"
             f"<td>{_fmt(r['limit'])}</td></tr>"
             for r in artifacts.read_json(checks)["figures"]["checks"] if r["applies"])
+        picture = fig("Checks on the unrolled lens", build.path("checks.png"), "red: where a check fails") \
+            if build.path("checks.png").exists() else ""
         sections.append((f"Fabrication checks ({build.fab.name})",
-                         f"<table><tr><th>check</th><th>result</th><th>value</th><th>limit</th></tr>{rows}</table>"))
-    sections.append(("Next steps", (
-        f"<p>Send <code>lens.stl</code> to the printer's slicer (binary STL, millimetres, Z up, standing on its "
-        f"base) or <code>lens.step</code> to the CNC shop (one solid; the outer surface is a single B-spline "
-        f"face). Material: {build.fab.material} (n = {build.fab.ior}). The LED goes into the bore in the base "
-        f"(radius {build.fab.mount_radius_mm} mm); place the lamp with its +y side facing the front wall, "
-        f"{build.design.room.wall_distance_mm:.0f} mm from the front, left and right walls.</p>")))
-    report_mod.write_report(build.path("report.html"), f"lampfab: {build.out.name}", walls, stage_figures, sections)
+                         f"<table><tr><th>check</th><th>result</th><th>value</th><th>limit</th></tr>{rows}</table>"
+                         f"{picture}"))
+    if "guidance" in figures:
+        from . import guidance
+
+        sections.append(("Finishing and tolerances", guidance.html(figures["guidance"], figures["tolerance"])))
+    sections.append(("Next steps", _next_steps(build) + (
+        "<p>For a beauty render, import <code>lens.glb</code> into Blender (File › Import › glTF): it arrives "
+        "at its real size with a glass material of the same refractive index. <code>design.json</code> gives "
+        "the light and the walls in the same frame.</p>")))
+    report_mod.write_report(build.path("report.html"), f"lampfab: {build.out.name}", walls, stage_figures, sections,
+                            first)
+
+
+@_per_kind
+def _lens_sections(build: Build, pics: dict, fig) -> tuple[list, list]:
+    """The report's first section (the lamp) and the outer layer's section."""
+    first = [("Your lamp", '<div class="row">' + fig(
+        "The lamp in its room", pics["room"], "the exported lens path-traced as glass; the walls show the "
+        "projections verify traced from the same file (LED size)") + fig(
+        "The lens", pics["lens"], "lens.stl as a matte object: the bumps are the outer layer that makes "
+        "the picture") + "</div>")]
+    return first, [("The outer layer, unrolled", fig(
+        "Radial offset from the plain cylinder", pics["heightmap"], "each 90° sector lights the wall named "
+        "above it; orange bulges out, blue goes in"))]
+
+
+@_per_kind
+def _next_steps(build: Build) -> str:
+    """What to do with the files (HTML)."""
+    return (f"<p>Send <code>lens.stl</code> to the printer's slicer (binary STL, millimetres, Z up, standing on "
+            f"its base) or <code>lens.step</code> to the CNC shop or into FreeCAD / Fusion (one solid; the outer "
+            f"surface is a single B-spline face). Material: {build.fab.material} (n = {build.fab.ior}). The LED "
+            f"goes into the bore in the base (radius {build.fab.mount_radius_mm} mm); place the lamp with its +y "
+            f"side facing the front wall, {build.design.room.wall_distance_mm:.0f} mm from the front, left and "
+            f"right walls.</p>")

@@ -18,6 +18,7 @@ from .errors import LampfabError
 
 PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
 WALL_NAMES = ("front", "left", "right", "floor")
+LENS_KINDS = ("cylinder", "panel")
 
 
 def _spec(default, lo=None, hi=None, choices=None, doc=""):
@@ -26,12 +27,25 @@ def _spec(default, lo=None, hi=None, choices=None, doc=""):
 
 @dataclass(frozen=True)
 class Lens:
+    kind: str = _spec("cylinder", choices=LENS_KINDS,
+                      doc="cylinder: the lamp around its LED; panel: the source's prior-work flat panel ([panel])")
     outer_radius_mm: float = _spec(45.0, 10.0, 300.0, doc="radius of the plain outer cylinder")
     height_mm: float = _spec(90.0, 10.0, 600.0, doc="height of the lens solid, base on z = 0")
     light_height_mm: float = _spec(45.0, 1.0, 599.0, doc="LED centre above the base")
-    inner_mesh: str = _spec("", doc="inner layer file (OBJ/PLY/STL); empty: bundled default")
+    inner_mesh: str = _spec("", doc="inner layer file (OBJ/PLY/STL/OFF, or GLB read in metres); empty: bundled default")
     inner_scale: float = _spec(1.0, 1e-4, 1e4, doc="scale applied to the inner mesh (Blender metres -> 1000)")
     max_offset_mm: float = _spec(20.0, 0.1, 100.0, doc="bound on the radial heightmap, both ways")
+
+
+@dataclass(frozen=True)
+class Panel:
+    """The flat panel of the source's prior work (``[lens] kind = "panel"``): a collimated
+    beam enters its flat back face and leaves through the relief facing the front wall."""
+    width_mm: float = _spec(100.0, 5.0, 2000.0, doc="panel width (x)")
+    height_mm: float = _spec(100.0, 5.0, 2000.0, doc="panel height (z), standing on its lower edge")
+    thickness_mm: float = _spec(10.0, 1.0, 200.0, doc="flat back face to the relief's middle plane")
+    max_relief_mm: float = _spec(4.0, 0.05, 100.0, doc="bound on the relief's offsets, both ways")
+    divergence_deg: float = _spec(0.5, 0.0, 10.0, doc="half-angle of the real beam's spread (verify's second render)")
 
 
 @dataclass(frozen=True)
@@ -79,6 +93,8 @@ class Verify:
     image_px: int = _spec(64, 8, 4096, doc="verify image width in pixels")
     photons: int = _spec(4_000_000, 10_000, 2_000_000_000, doc="photons per verify render")
     max_bounces: int = _spec(8, 2, 64, doc="interface crossings followed per photon")
+    scene_px: int = _spec(320, 16, 4096, doc="width of the report's picture of the glass lamp in its room")
+    scene_spp: int = _spec(32, 1, 65536, doc="path-traced samples per pixel of that picture")
 
 
 @dataclass(frozen=True)
@@ -96,6 +112,7 @@ class Design:
     optimize: Optimize
     verify: Verify
     export: Export
+    panel: Panel = field(default_factory=Panel)
     path: str = ""
 
 
@@ -109,6 +126,8 @@ class Fabrication:
     min_wall_mm: float = _spec(1.5, 0.1, 50.0, doc="thinnest wall between inner and outer surface")
     max_slope_deg: float = _spec(60.0, 1.0, 90.0, doc="steepest outer slope against the radial direction")
     tool_radius_mm: float = _spec(0.0, 0.0, 50.0, doc="ball-end radius (0: not milled)")
+    setups: int = _spec(0, 0, 12, doc="3-axis milling: indexed setups about the lamp axis (0: not indexed)")
+    max_tool_angle_deg: float = _spec(90.0, 1.0, 90.0, doc="3-axis: steepest surface against the tool axis")
     build_x_mm: float = _spec(145.0, 1.0, 5000.0, doc="build volume x")
     build_y_mm: float = _spec(145.0, 1.0, 5000.0, doc="build volume y")
     build_z_mm: float = _spec(185.0, 1.0, 5000.0, doc="build volume z")
@@ -118,7 +137,7 @@ class Fabrication:
     path: str = ""
 
 
-SECTIONS = {"lens": Lens, "room": Room, "optimize": Optimize, "verify": Verify, "export": Export}
+SECTIONS = {"lens": Lens, "room": Room, "optimize": Optimize, "verify": Verify, "export": Export, "panel": Panel}
 
 
 def _check_value(cls, f: dataclasses.Field, value: Any, where: str) -> Any:
@@ -200,7 +219,12 @@ def load_design(name_or_path: str) -> Design:
             raise LampfabError(f"{path}: [{section}] must be a table")
         parts[section] = _build(cls, table, path, section)
     design = Design(name=path.stem, path=str(path), **parts)
-    _check_design(design, path)
+    if design.lens.kind == "panel":
+        _check_panel(design, data, path)
+    else:
+        if "panel" in data:
+            raise LampfabError(f"{path}: [panel] applies only to [lens] kind = \"panel\"")
+        _check_design(design, path)
     return design
 
 
@@ -210,6 +234,9 @@ def load_fabrication(name_or_path: str) -> Fabrication:
     fab = _build(Fabrication, data, path, "")
     if not fab.name:
         fab = dataclasses.replace(fab, name=path.stem)
+    if fab.process == "cnc3" and fab.setups < 2:
+        raise LampfabError(f"{path}: setups {fab.setups}: 3-axis milling (process cnc3) needs at least 2 setups "
+                           f"(the part is turned about the lamp axis between them)")
     return dataclasses.replace(fab, path=str(path))
 
 
@@ -236,6 +263,25 @@ def _check_design(d: Design, path: Path) -> None:
         raise LampfabError(f"{path}: [optimize] grid_u must be divisible by 4^(levels-1) = {coarse}")
     if opt.grid_u // coarse < 8 or opt.grid_v // coarse < 4:
         raise LampfabError(f"{path}: [optimize] the coarsest level would be below 8 x 4 nodes; lower levels")
+
+
+def _check_panel(d: Design, data: dict, path: Path) -> None:
+    """A panel profile: only the keys that mean something for a panel, and sizes that fit."""
+    cylinder_only = sorted(set(data.get("lens", {})) - {"kind"})
+    if cylinder_only:
+        raise LampfabError(f"{path}: [lens] {cylinder_only[0]} applies only to kind = \"cylinder\"; a panel's "
+                           f"sizes go in [panel]")
+    p, room, opt = d.panel, d.room, d.optimize
+    if tuple(room.walls) != ("front",):
+        raise LampfabError(f"{path}: [room] walls must be [\"front\"] for a panel (it lights the wall it faces)")
+    if p.max_relief_mm >= p.thickness_mm:
+        raise LampfabError(f"{path}: [panel] max_relief_mm {p.max_relief_mm} must be below thickness_mm "
+                           f"{p.thickness_mm} (the relief would cut through the back face)")
+    if room.wall_distance_mm <= p.thickness_mm + p.max_relief_mm:
+        raise LampfabError(f"{path}: [room] wall_distance_mm must exceed the panel's thickness plus its relief")
+    if opt.init != "transport" or opt.iterations:
+        raise LampfabError(f"{path}: [optimize] a panel is designed by transport alone: init must be "
+                           f"\"transport\" and iterations 0")
 
 
 def as_dict(obj) -> dict:

@@ -17,7 +17,7 @@ from pathlib import Path
 from .artifacts import atomic_path
 from .errors import LampfabError
 
-_MIME = ((b"\x89PNG\r\n\x1a\n", "image/png"), (b"\xff\xd8\xff", "image/jpeg"))
+_MIME = ((b"\x89PNG\r\n\x1a\n", "image/png"), (b"\xff\xd8\xff", "image/jpeg"), (b"GIF8", "image/gif"))
 
 # Wall dict keys with a fixed place on the page; any other scalar key is listed too.
 _IMAGE_KEYS = ("target_png", "render_png", "blur_png")
@@ -66,7 +66,7 @@ footer { margin-top: 40px; color: #5d6470; font-size: 12px; }
 
 
 def write_report(path: str | os.PathLike, title: str, walls: list[dict], figures: dict,
-                 sections: list[tuple[str, str]] = ()) -> None:
+                 sections: list[tuple[str, str]] = (), first: list[tuple[str, str]] = ()) -> None:
     """Write the HTML report to ``path`` atomically.
 
     ``walls``: one dict per wall with "name", "target_png", "render_png", "blur_png"
@@ -75,7 +75,8 @@ def write_report(path: str | os.PathLike, title: str, walls: list[dict], figures
     "blur_share"; any other scalar key is listed under the wall.
     ``figures``: {group: {name: value}} (e.g. one group per stage), shown as a table.
     ``sections``: (title, html) pairs; the title is escaped, the HTML is inserted as
-    is (it comes from lampfab itself, never from the user).
+    is (it comes from lampfab itself, never from the user; ``figure_html`` makes its
+    pictures).  ``first``: sections of the same kind shown above the walls.
     An image path that does not exist raises ``LampfabError``.
     """
     from . import __version__
@@ -93,6 +94,7 @@ def write_report(path: str | os.PathLike, title: str, walls: list[dict], figures
         "its target after normalizing brightness; share is the fraction of the LED's "
         "light that lands on the wall's image.</p>",
     ]
+    parts.extend(_section(t, snippet) for t, snippet in first)
     if walls:
         parts.append("<h2>Walls</h2>")
     for wall in walls:
@@ -100,13 +102,21 @@ def write_report(path: str | os.PathLike, title: str, walls: list[dict], figures
     if figures:
         parts.append("<h2>Key figures</h2>")
         parts.append(_figures_html(figures))
-    for sec_title, snippet in sections:
-        parts.append(f'<section class="free"><h2>{_e(sec_title)}</h2>{snippet}</section>')
+    parts.extend(_section(t, snippet) for t, snippet in sections)
     parts.append(f"<footer>Made by lampfab {_e(__version__)}.</footer>")
     parts.append("</main></body></html>\n")
 
     with atomic_path(path, suffix=".html") as tmp:
         tmp.write_text("\n".join(parts), encoding="utf-8")
+
+
+def _section(title: str, snippet: str) -> str:
+    return f'<section class="free"><h2>{_e(title)}</h2>{snippet}</section>'
+
+
+def figure_html(label: str, path, caption: str = "") -> str:
+    """One embedded picture (PNG, JPEG or GIF) with its label and an escaped caption."""
+    return _figure(label, path, [], f'<span class="note">{_e(caption)}</span>' if caption else "")
 
 
 def _e(value) -> str:
@@ -124,7 +134,7 @@ def _data_uri(path) -> str:
     for magic, mime in _MIME:
         if data.startswith(magic):
             return f"data:{mime};base64,{base64.b64encode(data).decode('ascii')}"
-    raise LampfabError(f"{p}: not a PNG or JPEG image; the report embeds PNG or JPEG only")
+    raise LampfabError(f"{p}: not a PNG, JPEG or GIF image; the report embeds only these")
 
 
 def _fmt(value) -> str:
@@ -166,14 +176,14 @@ def _pct(value) -> str:
         return _e(value)
 
 
-def _figure(label: str, path, caption_figs: list[tuple[str, str]]) -> str:
+def _figure(label: str, path, caption_figs: list[tuple[str, str]], note: str = "") -> str:
     if path:
         img = f'<img src="{_data_uri(path)}" alt="{_e(label)}">'
     else:
         img = '<div class="missing">not available</div>'
     figs = "".join(f"<span>{_e(k)} <em>{v}</em></span>" for k, v in caption_figs)
     figs_html = f'<div class="figs">{figs}</div>' if figs else ""
-    return f"<figure>{img}<figcaption><b>{_e(label)}</b>{figs_html}</figcaption></figure>"
+    return f"<figure>{img}<figcaption><b>{_e(label)}</b>{figs_html}{note}</figcaption></figure>"
 
 
 def _wall_html(wall: dict) -> str:

@@ -61,7 +61,10 @@ class Wall:
 
 
 def light_position(design: Design) -> np.ndarray:
-    """(3,) float64 mm: the LED centre on the lamp axis."""
+    """(3,) float64 mm: the LED centre on the lamp axis (a panel: the centre of its
+    flat back face, where the collimated beam enters)."""
+    if design.lens.kind == "panel":
+        return np.array([0.0, 0.0, design.panel.height_mm / 2])
     return np.array([0.0, 0.0, design.lens.light_height_mm])
 
 

@@ -5,11 +5,14 @@ with a cylindrical bore on the lamp axis that runs from below the base (z < 0) u
 through the inner layer's flat bottom, so the cavity opens through the base: resin
 drains out of a print, and the LED goes in from below.
 
-The bore only ever removes glass *below* the cavity: it enters the cavity through the
-inner layer's flat bottom face (its floor) and must leave a ledge of at least
-``BORE_LEDGE_MM`` of that floor all around, so it never widens the cavity's optical
-side walls.  A mount radius the floor cannot take is a LampfabError that names the
-numbers.
+The bore only ever removes glass *below* the cavity's flat bottom face (its floor), so
+it never widens the cavity's optical side walls.  Either it enters through the floor
+and leaves a ledge of at least ``BORE_LEDGE_MM`` of it all around (a printed lens: the
+LED board passes a bore narrower than the cavity), or it is a *counterbore*: at least
+``BORE_LEDGE_MM`` wider than the whole floor, it opens the floor completely and ends
+at its height, so a tool entering from below reaches every part of a cavity that does
+not widen upward (a milled lens, see the cavity_access check).  A mount radius between
+the two is a LampfabError that names the numbers.
 
 Booleans run in manifold3d (exact, fast); every result's ``status()`` is checked and
 the solid is verified: watertight, consistently wound, one connected boundary shell
@@ -50,9 +53,11 @@ class Bore:
     """The mount bore: a ``sections``-gon prism on the lamp axis (mm).
 
     Its polygon's vertices lie on the circle of ``radius_mm``; it spans
-    ``z_bottom_mm`` (< 0) to ``z_top_mm`` (inside the cavity) and meets the cavity at
-    the inner layer's floor ``z_floor_mm``.  ``floor_reach_mm`` is the radius of the
-    largest disk around the axis inside that floor.
+    ``z_bottom_mm`` (< 0) to ``z_top_mm`` (inside the cavity; for a counterbore the
+    floor's height) and meets the cavity at the inner layer's floor ``z_floor_mm``.
+    ``floor_reach_mm`` is the radius of the largest disk around the axis inside that
+    floor, ``floor_extent_mm`` the farthest the floor reaches from the axis;
+    ``counterbore``: the bore is wider than the whole floor and replaces it.
     """
     radius_mm: float
     sections: int
@@ -60,6 +65,8 @@ class Bore:
     z_floor_mm: float
     z_top_mm: float
     floor_reach_mm: float
+    floor_extent_mm: float = 0.0
+    counterbore: bool = False
 
     @property
     def polygon_area_mm2(self) -> float:
@@ -142,7 +149,8 @@ def plan_bore(inner_vertices: np.ndarray, inner_faces: np.ndarray, mount_radius_
     into the glass, so the floor's normals point to -z).  The floor is the set of
     faces lying within ``tolerances.WELD_MM`` of the inner layer's lowest z with
     downward normals; the bore circle plus ``BORE_LEDGE_MM`` must fit inside it around
-    the axis.
+    the axis, or (a counterbore) the whole floor must lie inside the bore circle less
+    ``BORE_LEDGE_MM``.
     """
     v = np.asarray(inner_vertices, np.float64)
     f = np.asarray(inner_faces, np.int64)
@@ -159,19 +167,29 @@ def plan_bore(inner_vertices: np.ndarray, inner_faces: np.ndarray, mount_radius_
     normal_z = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])[:, 2]
     on_floor = np.all(np.abs(tri[:, :, 2] - z0) <= tolerances.WELD_MM, axis=1) & (normal_z < 0)
     reach = _floor_reach(v[:, :2], f[on_floor])
+    floor_vertices = np.unique(f[on_floor])
+    extent = float(np.hypot(*v[floor_vertices, :2].T).max()) if len(floor_vertices) else 0.0
+    # A counterbore must open the whole bottom: every vertex at the lowest z on the floor.
+    whole = len(floor_vertices) and np.isin(np.flatnonzero(np.abs(z - z0) <= tolerances.WELD_MM),
+                                            floor_vertices).all()
+    if reach > 0 and whole and r >= extent + BORE_LEDGE_MM - tolerances.WELD_MM:
+        return Bore(radius_mm=r, sections=int(sections), z_bottom_mm=-BORE_BELOW_MM, z_floor_mm=z0,
+                    z_top_mm=z0, floor_reach_mm=reach, floor_extent_mm=extent, counterbore=True)
     need = r + BORE_LEDGE_MM
     if reach < need:
         where = (f"its flat bottom at z = {z0:.2f} mm reaches {reach:.2f} mm from the axis"
                  if reach > 0 else f"it has no flat bottom around the axis at its lowest z = {z0:.2f} mm")
+        wider = (f" or >= {extent + BORE_LEDGE_MM:.2f} (a counterbore opening the whole floor, which reaches "
+                 f"{extent:.2f} mm)" if reach > 0 and whole else "")
         raise LampfabError(
             f"mount_radius_mm {r:g} is too large for the inner layer: the bore enters the cavity through "
             f"the inner layer's flat bottom and needs it to reach {need:.2f} mm from the axis (bore radius + "
-            f"{BORE_LEDGE_MM} mm ledge), but {where}; a larger bore would cut glass beside the cavity. "
-            f"Use mount_radius_mm <= {max(reach - BORE_LEDGE_MM, 0):.2f} or give the inner layer a wider "
-            f"flat bottom centred on the axis")
+            f"{BORE_LEDGE_MM} mm ledge), but {where}; a bore in between would cut glass beside the cavity. "
+            f"Use mount_radius_mm <= {max(reach - BORE_LEDGE_MM, 0):.2f}{wider}, or give the inner layer a "
+            f"wider flat bottom centred on the axis")
     overlap = min(BORE_OVERLAP_MM, 0.5 * (z1 - z0))
     return Bore(radius_mm=r, sections=int(sections), z_bottom_mm=-BORE_BELOW_MM, z_floor_mm=z0,
-                z_top_mm=z0 + overlap, floor_reach_mm=reach)
+                z_top_mm=z0 + overlap, floor_reach_mm=reach, floor_extent_mm=extent)
 
 
 def _floor_reach(xy: np.ndarray, floor_faces: np.ndarray) -> float:

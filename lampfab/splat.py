@@ -2,12 +2,17 @@
 
 The light inside the glass does not depend on the outer surface: photons are traced
 from the LED through the fixed inner layer once.  Each step then needs a single
-differentiable intersection with the outer mesh (Mitsuba's ``ray_intersect``, whose hit
-point and facet normal carry Dr.Jit gradients of the vertices), Snell's law, the
-wall plane, and a bilinear splat into each wall's image.  Every photon counts (no
-camera connection), and the photon set is fixed, so the objective has no Monte Carlo
-noise from step to step.  Fresnel reflections are left out of the gradient; verify
-traces them.
+intersection with the outer mesh, Snell's law at the hit facet, the wall plane, and a
+bilinear splat into each wall's image.  Every photon counts (no camera connection), and
+the photon set is fixed for a step, so the objective has no Monte Carlo noise within a
+step.  Fresnel reflections are left out of the gradient; verify traces them.
+
+Bit-reproducible: Dr.Jit computes only per-photon quantities (where a photon lands, and
+its derivative with respect to the three corners of the facet it crossed).  Every sum
+over photons, into pixels and into vertices, runs in numpy (``np.bincount``) in a fixed
+order.  Dr.Jit's own ``scatter_add`` and the backward pass of a gather are atomic
+float additions on many threads: their order, and so the last bits, change from run
+to run.
 """
 
 from __future__ import annotations
@@ -26,8 +31,8 @@ class SplatOptimizer(Optimizer):
 
         verts, faces = surface.closed_outer_mesh(self.cyl, heights, self.opt.tessellation)
         self.outer = MeshScene(verts, faces)
-        mi = self.mi = self.outer.mi
-        self.params = mi.traverse(self.outer.scene)
+        self.mi = self.outer.mi
+        self.params = self.mi.traverse(self.outer.scene)
         self.key = "lens.vertex_positions"
         self.fine = surface.fine_shape(*heights.shape, self.opt.tessellation)
         self.radial = surface.radial_dirs(*self.fine)
@@ -58,73 +63,140 @@ class SplatOptimizer(Optimizer):
 
     def _set_heights(self, heights: np.ndarray) -> None:
         verts, _ = surface.closed_outer_mesh(self.cyl, heights, self.opt.tessellation)
-        self.params[self.key] = self.mi.Float(verts.astype(np.float32).ravel())
+        self.n_vertices = len(verts)
+        self.params[self.key] = self.mi.Float(np.ascontiguousarray(verts, np.float32).ravel())
         self.params.update()
 
-    def _images(self, views: list[int]):
-        """Differentiable flux images of the given walls (Dr.Jit Float, row-major)."""
+    def _landing(self, views: list[int], grad: bool):
+        """Where each photon lands on each wall, in pixel units.
+
+        Returns (corner vertex indices (k, 3) of the facet each of the k photons that
+        met the outer surface crossed, the facet corners as Dr.Jit leaves (gradients
+        enabled when ``grad``), and per view (x, y, ok): Dr.Jit pixel coordinates and a
+        numpy bool mask of photons that leave the glass towards the wall's plane).
+        """
         import drjit as dr
 
+        from .trace import _take
+
         mi = self.mi
-        si = self.outer.scene.ray_intersect(mi.Ray3f(self.o_glass, self.d_glass), mi.RayFlags.All, False)
-        n = si.n
-        d = self.d_glass
+        si = self.outer.scene.ray_intersect(mi.Ray3f(self.o_glass, self.d_glass), mi.RayFlags.Minimal, False)
+        met = dr.compress(si.is_valid())
+        prim = dr.gather(mi.UInt32, si.prim_index, met)
+        o = _take(mi.Point3f, self.o_glass, met)
+        d = _take(mi.Vector3f, self.d_glass, met)
+        # Corners gathered in Dr.Jit, not passed in from numpy: Dr.Jit uses numpy's
+        # memory as it lies, and each alignment of each input compiles another kernel.
+        index = [dr.gather(mi.UInt32, self.params["lens.faces"], prim * 3 + j) for j in range(3)]
+        positions = dr.unravel(mi.Point3f, self.params[self.key])
+        v = [_take(mi.Point3f, positions, i) for i in index]
+        dr.eval(index, v)
+        corners = np.stack([i.numpy() for i in index], 1).astype(np.int64)
+        if grad:
+            for corner in v:
+                dr.enable_grad(corner)
+        # The facet's plane and outward normal (the winding is outward), as Mitsuba's
+        # geometric normal; the hit point moves with the facet along the fixed ray.
+        normal = dr.cross(v[1] - v[0], v[2] - v[0])
+        p = o + dr.dot(v[0] - o, normal) / dr.dot(d, normal) * d
+        n = dr.normalize(normal)
         cos_i = dr.dot(d, n)  # leaving the glass along the outward normal
         eta = 1.0 / self.ior
         sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
-        ok = si.is_valid() & (sin2_t < 1.0) & (cos_i > 0)
+        leaves = (sin2_t < 1.0) & (cos_i > 0)
         cos_t = dr.safe_sqrt(1.0 - sin2_t)
         out = dr.normalize(d / eta - (cos_i / eta - cos_t) * n)  # facing normal is -n
-        p = si.p
-        weight = 1.0 / self.opt.splat_photons
-        images = []
+        per_view = []
         for view in views:
             wall = self.walls[view]
             rows, cols = self.shapes[view]
-            normal = mi.Vector3f(*wall.normal.tolist())
-            denom = dr.dot(out, normal)
-            t = dr.dot(mi.Point3f(*wall.origin.tolist()) - p, normal) / denom
-            rel = p + t * out - mi.Point3f(*wall.origin.tolist())
+            normal_w = mi.Vector3f(*wall.normal.tolist())
+            origin = mi.Point3f(*wall.origin.tolist())
+            denom = dr.dot(out, normal_w)
+            t = dr.dot(origin - p, normal_w) / denom
+            rel = p + t * out - origin
             x = dr.dot(rel, mi.Vector3f(*wall.right.tolist())) / wall.width_mm**2 * cols - 0.5
             y = dr.dot(rel, mi.Vector3f(*wall.down.tolist())) / wall.height_mm**2 * rows - 0.5
-            hit = ok & (denom < 0) & (t > 0) & (x > -1) & (x < cols) & (y > -1) & (y < rows)
-            x0, y0 = dr.floor(x), dr.floor(y)
-            fx, fy = x - x0, y - y0
-            image = dr.zeros(mi.Float, rows * cols)
-            for dx, dy, w in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)),
-                              (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
-                cx, cy = mi.Int32(x0) + dx, mi.Int32(y0) + dy
-                inside = hit & (cx >= 0) & (cx < cols) & (cy >= 0) & (cy < rows)
-                dr.scatter_add(image, weight * w, mi.UInt32(cy * cols + cx), inside)
-            images.append(image)
-        return images
+            ok = leaves & (denom < 0) & (t > 0)
+            dr.eval(x, y, ok)
+            per_view.append((x, y, ok.numpy()))
+        return corners, v, per_view
+
+    def _splat(self, x: np.ndarray, y: np.ndarray, ok: np.ndarray, view: int, grad_image: np.ndarray | None = None):
+        """Bilinear splat of photons at pixel coordinates (x, y) (k,) float64 into a
+        (rows*cols,) float64 flux image, summed in numpy.  With ``grad_image`` (the
+        loss's gradient per pixel) returns instead the loss's gradient per photon with
+        respect to x and y: ((k,), (k,)) float64."""
+        rows, cols = self.shapes[view]
+        ok = ok & np.isfinite(x) & np.isfinite(y) & (x > -1) & (x < cols) & (y > -1) & (y < rows)
+        x0, y0 = np.floor(np.where(ok, x, 0.0)), np.floor(np.where(ok, y, 0.0))
+        fx, fy = np.where(ok, x - x0, 0.0), np.where(ok, y - y0, 0.0)
+        weight = 1.0 / self.opt.splat_photons
+        image = np.zeros(rows * cols)
+        gx, gy = np.zeros(len(x)), np.zeros(len(x))
+        for dx, dy, w, dw_dx, dw_dy in ((0, 0, (1 - fx) * (1 - fy), -(1 - fy), -(1 - fx)),
+                                        (1, 0, fx * (1 - fy), 1 - fy, -fx),
+                                        (0, 1, (1 - fx) * fy, -fy, 1 - fx),
+                                        (1, 1, fx * fy, fy, fx)):
+            cx, cy = x0.astype(np.int64) + dx, y0.astype(np.int64) + dy
+            inside = ok & (cx >= 0) & (cx < cols) & (cy >= 0) & (cy < rows)
+            pixel = np.where(inside, cy * cols + cx, 0)
+            if grad_image is None:
+                image += np.bincount(pixel, weights=np.where(inside, weight * w, 0.0), minlength=rows * cols)
+            else:
+                g = np.where(inside, weight * grad_image[pixel], 0.0)
+                gx += g * dw_dx
+                gy += g * dw_dy
+        return image if grad_image is None else (gx, gy)
 
     def render(self, heights: np.ndarray, view: int, seed: int) -> np.ndarray:
         self._ensure_scene(heights)
         self._photons(seed)
         self._set_heights(heights)
-        image = self._images([view])[0]
-        return image.numpy().astype(np.float64).reshape(self.shapes[view])
+        _, _, [(x, y, ok)] = self._landing([view], grad=False)
+        return self._splat(x.numpy().astype(np.float64), y.numpy().astype(np.float64), ok, view
+                           ).reshape(self.shapes[view])
 
     def gradient(self, heights: np.ndarray, views: list[int], seed: int) -> tuple[float, np.ndarray]:
         import drjit as dr
 
         self._ensure_scene(heights)
         self._photons(seed)
-        mi = self.mi
         self._set_heights(heights)
-        positions = self.params[self.key]
-        dr.enable_grad(positions)
-        self.params.update()
+        corners, v, per_view = self._landing(views, grad=True)
         weights = self.opt.loss_weights or (1.0,) * len(self.walls)
-        total = mi.Float(0.0)
-        for view, image in zip(views, self._images(views)):
-            target = mi.Float(self.targets[view].ravel().astype(np.float32))
-            total += losses.view_loss(self.opt.loss, image, target, dr.mean, weights[view])
-        dr.backward(total)
-        grad = dr.grad(positions).numpy().astype(np.float64)
-        dr.disable_grad(positions)
+        total = 0.0
+        surrogate = self.mi.Float(0.0)
+        for view, (x, y, ok) in zip(views, per_view):
+            xs, ys = x.numpy().astype(np.float64), y.numpy().astype(np.float64)
+            image = self._splat(xs, ys, ok, view)
+            loss, grad_image = losses.view_loss_and_grad(self.opt.loss, image, self.targets[view].ravel(),
+                                                         weights[view])
+            total += loss
+            gx, gy = self._splat(xs, ys, ok, view, grad_image)
+            # Linear in x and y with the loss's slopes: its backward pass gives each
+            # photon's facet corners their gradient, photon by photon (no sums).
+            surrogate = surrogate + _jit_float(self.mi, gx) * x + _jit_float(self.mi, gy) * y
+        dr.backward(surrogate)
+        grads = [dr.grad(corner) for corner in v]
+        dr.eval(grads)  # one kernel for all nine components
+        grad_vertices = np.zeros((self.n_vertices, 3))
+        for j, g in enumerate(grads):
+            for c, component in enumerate((g.x, g.y, g.z)):
+                grad_vertices[:, c] += np.bincount(corners[:, j], weights=component.numpy().astype(np.float64),
+                                                   minlength=self.n_vertices)
         mu, mv = self.fine
-        g = grad.reshape(-1, 3)[: mu * mv]
-        g_fine = np.einsum("ij,ij->i", g, self.radial).reshape(mu, mv)
-        return float(total.numpy()[0]), surface.sample_adjoint(g_fine, *heights.shape)
+        g_fine = np.einsum("ij,ij->i", grad_vertices[: mu * mv], self.radial).reshape(mu, mv)
+        return total, surface.sample_adjoint(g_fine, *heights.shape)
+
+
+def _jit_float(mi, values: np.ndarray):
+    """A Dr.Jit Float holding ``values``, from a 64-byte aligned float32 buffer.
+
+    Dr.Jit uses numpy's memory as it lies and compiles one kernel per alignment of its
+    inputs; aligned buffers keep it to one (a recompile costs more than a tiny step)."""
+    buffer = np.empty(len(values) + 16, np.float32)
+    start = (-buffer.ctypes.data % 64) // 4
+    aligned = buffer[start: start + len(values)]
+    aligned[:] = values
+    return mi.Float(aligned)

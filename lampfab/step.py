@@ -19,6 +19,8 @@ Units: mm (the STEP file says so).
 from __future__ import annotations
 
 import contextlib
+import datetime
+import os
 import time
 from pathlib import Path
 
@@ -342,7 +344,9 @@ def build_step_solid(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
         e = edge_cache[key]
         return e if a == key[0] else e.Reversed()
 
-    floor_hole = _wire([_boundary_edge(bore_face, bore.z_floor_mm).Reversed()])
+    # The bore's circle at the floor: a hole in the floor, or (a counterbore) the outer
+    # boundary of the annular shoulder that replaces the floor.
+    bore_circle = _wire([_boundary_edge(bore_face, bore.z_floor_mm).Reversed()])
     floor_done = False
     for group, n in _facet_groups(v, f):
         loops = _loops(f[group]) if len(group) > 1 else [list(map(int, f[group[0]]))]
@@ -363,11 +367,16 @@ def build_step_solid(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
             wires = [_wire([edge(lp[k], lp[(k + 1) % len(lp)]) for k in range(len(lp))]) for lp in loops]
             outer_wire = wires[outers[0]]
             holes = [w for k, w in enumerate(wires) if k != outers[0]]
-            is_floor = (not floor_done and out_n[2] > 1 - 1e-12
-                        and abs(v[loops[0][0], 2] - bore.z_floor_mm) <= PLANAR_MM
-                        and _contains_disk(v[loops[outers[0]]][:, :2], bore.radius_mm + 0.5 * BORE_LEDGE_MM))
-            if is_floor:
-                holes.append(floor_hole)
+            on_floor = (not floor_done and out_n[2] > 1 - 1e-12
+                        and abs(v[loops[0][0], 2] - bore.z_floor_mm) <= PLANAR_MM)
+            if on_floor and bore.counterbore and not holes:
+                # The counterbore opens the floor: glass faces down from the bore's circle in
+                # to the floor's edge, whose edges it takes in the floor's own direction.
+                faces.append(_planar_face((0, 0, bore.z_floor_mm), (0, 0, -1), bore_circle, [outer_wire]))
+                floor_done = True
+                continue
+            if on_floor and _contains_disk(v[loops[outers[0]]][:, :2], bore.radius_mm + 0.5 * BORE_LEDGE_MM):
+                holes.append(bore_circle)
                 floor_done = True
             faces.append(_planar_face(v[np.concatenate(loops)].mean(axis=0), out_n, outer_wire, holes))
     if not floor_done:
@@ -466,10 +475,6 @@ def write_step(path, cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
     check_s, write_s).  Raises GeometryError if the solid is invalid, open, or has a
     non-positive or unexpected volume.
     """
-    from OCP.IFSelect import IFSelect_RetDone
-    from OCP.Interface import Interface_Static
-    from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
-
     from . import tolerances
 
     solid, info = build_step_solid(cyl, heights, inner_vertices, inner_faces, mount_radius_mm,
@@ -484,19 +489,59 @@ def write_step(path, cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
         if rel > tolerances.VOLUME_REL:
             raise GeometryError(f"STEP: solid volume {figs['volume_mm3']:.3f} mm^3 differs from the expected "
                                 f"{expected_volume_mm3:.3f} by {rel:.2%} (limit {tolerances.VOLUME_REL:.1%})")
-    t0 = time.perf_counter()
-    Interface_Static.SetCVal_s("write.step.unit", "MM")
-    writer = STEPControl_Writer()
-    with _quiet(), atomic_path(path, suffix=".step") as tmp:
-        if writer.Transfer(solid, STEPControl_AsIs) != IFSelect_RetDone:
-            raise GeometryError("STEP: transferring the solid to the writer failed")
-        if writer.Write(str(tmp)) != IFSelect_RetDone:
-            raise GeometryError(f"STEP: writing {path} failed")
-    info["write_s"] = time.perf_counter() - t0
+    info["write_s"] = write_shape(path, solid)
     info.update(figs)
     info["deviation_mm"] = info["deviation"]["radial_mm"]
     info["file_bytes"] = Path(path).stat().st_size
     return info
+
+
+def write_shape(path, solid) -> float:
+    """Write an OCCT solid to ``path`` as STEP (AP214, mm) atomically; returns seconds.
+
+    The header's time stamp is ``SOURCE_DATE_EPOCH`` where that is set (the
+    reproducible-builds convention), so the same design can give the same bytes."""
+    from OCP.APIHeaderSection import APIHeaderSection_MakeHeader
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.Interface import Interface_Static
+    from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
+    from OCP.TCollection import TCollection_HAsciiString
+
+    t0 = time.perf_counter()
+    writer = STEPControl_Writer()  # registers the write.step statics
+    Interface_Static.SetCVal_s("write.step.unit", "MM")
+    with _quiet(), atomic_path(path, suffix=".step") as tmp:
+        if writer.Transfer(solid, STEPControl_AsIs) != IFSelect_RetDone:
+            raise GeometryError("STEP: transferring the solid to the writer failed")
+        _name_product(writer.Model(), Path(path).stem)
+        header = APIHeaderSection_MakeHeader(writer.Model())
+        header.SetName(TCollection_HAsciiString(Path(path).name))
+        if os.environ.get("SOURCE_DATE_EPOCH"):
+            stamp = _source_date()
+            header.SetTimeStamp(TCollection_HAsciiString(stamp.strftime("%Y-%m-%dT%H:%M:%S")))
+        if writer.Write(str(tmp)) != IFSelect_RetDone:
+            raise GeometryError(f"STEP: writing {path} failed")
+    return time.perf_counter() - t0
+
+
+def _name_product(model, name: str) -> None:
+    """Name the STEP product ``name``: OCCT names it after itself plus a per-process
+    counter, which would change the file from run to run and tell a CAM program nothing."""
+    from OCP.StepBasic import StepBasic_Product
+    from OCP.TCollection import TCollection_HAsciiString
+
+    for i in range(1, model.NbEntities() + 1):
+        entity = model.Value(i)
+        if isinstance(entity, StepBasic_Product):
+            entity.SetName(TCollection_HAsciiString(name))
+            entity.SetId(TCollection_HAsciiString(name))
+
+
+def _source_date() -> datetime.datetime:
+    value = os.environ["SOURCE_DATE_EPOCH"]
+    if not value.isdigit():
+        raise LampfabError(f"SOURCE_DATE_EPOCH={value!r}: give whole seconds since 1970 (or unset it)")
+    return datetime.datetime.fromtimestamp(int(value), datetime.timezone.utc)
 
 
 def read_step(path) -> dict:

@@ -61,3 +61,34 @@ def read_stl(path) -> tuple[np.ndarray, np.ndarray]:
     faces = ids.reshape(-1, 3)
     keep = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
     return unique.astype(np.float64), faces[keep]
+
+
+# ADMesh's repair counters (its labels): any non-zero one is a repair a slicer would make.
+ADMESH_REPAIRS = ("Degenerate facets", "Edges fixed", "Facets removed", "Facets added", "Facets reversed",
+                  "Backwards edges", "Normals fixed")
+
+
+def admesh_check(path) -> dict | None:
+    """Ask ADMesh (``admesh``; PrusaSlicer's and Slic3r's STL repair is a fork of it) what it
+    would repair in an STL: {"degenerate_facets": int, ... one per ADMESH_REPAIRS label,
+    "disconnected_facets": int, "parts": int, "repairs": their sum (0: a slicer takes the
+    file as it is)}.  None if ``admesh`` is not installed.  It only reads the file."""
+    import re
+    import shutil
+    import subprocess
+
+    exe = shutil.which("admesh")
+    if exe is None:
+        return None
+    run = subprocess.run([exe, str(path)], capture_output=True, text=True, timeout=600)
+    out = {}
+    for label in ADMESH_REPAIRS + ("Number of parts", "Total disconnected facets"):
+        m = re.search(rf"^{label}\s*:\s*(\d+)", run.stdout, re.M)
+        if run.returncode != 0 or m is None:
+            raise LampfabError(f"{path}: admesh failed or printed no {label!r} (exit {run.returncode}): "
+                               f"{(run.stderr or run.stdout)[-300:]}")
+        out[label.lower().replace(" ", "_")] = int(m.group(1))
+    out["parts"] = out.pop("number_of_parts")
+    out["disconnected_facets"] = out.pop("total_disconnected_facets")
+    out["repairs"] = sum(v for k, v in out.items() if k != "parts")
+    return out

@@ -23,3 +23,9 @@ MIN_GAP_MM = 0.5
 # Targets whose luminance range (max - min) is below this are "constant": nothing to
 # project.  Linear luminance in [0, 1]; 1e-3 is about one 8-bit step in sRGB shadows.
 CONSTANT_TARGET_RANGE = 1e-3
+
+# verify's render of the exported STL must match the optimizer's own final render of the
+# lens to at least this Pearson r on every wall (issue: "verify of the exported STL
+# matches the optimizer's own final render"); below it the file is not the lens that
+# was optimized (a wrong export, or a tracer disagreement worth a look).
+OPTIMIZER_MATCH_R = 0.98

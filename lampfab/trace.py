@@ -109,6 +109,8 @@ def propagate(mi, scene, o, d, ior: float, seed: int, max_bounces: int, on_escap
         if dr.width(gone):
             on_escape(_take(mi.Point3f, o, gone), _take(mi.Vector3f, d, gone))
         live = dr.compress(valid)
+        if dr.width(live) == 0:  # every photon left (a flat panel's light can all be out by now)
+            return 0
         # Opaque seeds: a literal would be baked into the kernel and force a recompile.
         rng = mi.PCG32(dr.width(live), dr.opaque(mi.UInt64, seed), dr.opaque(mi.UInt64, (bounce + 1) << 48))
         p = _take(mi.Point3f, si.p, live)
@@ -146,8 +148,11 @@ def pixel_hits(mi, walls: list[Wall], shapes: list[tuple[int, int]], o, d):
 
 def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float, ior: float,
                  walls: list[Wall], shapes: list[tuple[int, int]], photons: int, seed: int,
-                 max_bounces: int = 8) -> tuple[list[np.ndarray], dict]:
+                 max_bounces: int = 8, emitter=None) -> tuple[list[np.ndarray], dict]:
     """Trace ``photons`` photons from the LED through the lens onto the walls.
+
+    ``emitter(mi, n, rng)`` -> Dr.Jit (origins, unit directions) replaces the LED
+    (``emit``) with another light, e.g. a panel's collimated beam.
 
     Returns (per-wall flux images (rows, cols) float64, {"shares": [...], "lost": f,
     "trapped": f}) with flux as a fraction of the emitted light.  The per-pixel sums
@@ -165,7 +170,7 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
         n = min(BATCH, photons - done)
         batch_seed = seed * 1_000_003 + batch_index
         rng = mi.PCG32(n, dr.opaque(mi.UInt64, batch_seed), dr.opaque(mi.UInt64, 0))
-        o, d = emit(mi, light_mm, light_radius_mm, n, rng)
+        o, d = emitter(mi, n, rng) if emitter else emit(mi, light_mm, light_radius_mm, n, rng)
 
         def land(o_out, d_out):
             pixel = pixel_hits(mi, walls, shapes, o_out, d_out)

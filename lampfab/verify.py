@@ -3,7 +3,9 @@
 Reads only ``design.json`` and the files it names (the STL and the targets), so any
 independent tracer that reads the same files can reproduce these figures.  Each wall
 is rendered for the ideal point light and for the LED's real size (a Lambertian
-sphere of the design's radius), and compared with its target.
+sphere of the design's radius), and compared with its target.  A panel's ``light`` is a
+collimated beam (``"type": "collimated"``, see ``panel.light_json``): parallel, then
+with its real spread.
 """
 
 from __future__ import annotations
@@ -28,7 +30,10 @@ def read_design(path) -> dict:
 
 def render_design(design_path, image_px: int, photons: int, seed: int, max_bounces: int,
                   light_radius_mm: float | None = None) -> tuple[list[room.Wall], list[np.ndarray], dict]:
-    """Trace the design's STL onto its walls.  Returns (walls, flux images, info)."""
+    """Trace the design's STL onto its walls.  Returns (walls, flux images, info).
+
+    ``light_radius_mm`` None: the design's own light (an LED of its radius, a beam with
+    its spread); a number: an LED of that radius (a beam: parallel)."""
     from . import stl, trace
 
     design_path = Path(design_path)
@@ -38,10 +43,15 @@ def render_design(design_path, image_px: int, photons: int, seed: int, max_bounc
     walls = [room.Wall.from_json(w) for w in design["walls"]]
     shapes = [room.image_shape(w, image_px) for w in walls]
     radius = design["light"]["radius"] if light_radius_mm is None else light_radius_mm
+    emitter = None
+    if design["light"].get("type") == "collimated":
+        from .panel import emitter_from_json
+
+        emitter = emitter_from_json(design["light"], divergence=light_radius_mm is None)
     scene = trace.MeshScene(vertices, faces)
     images, info = trace.render_walls(scene, np.asarray(design["light"]["position"], float), radius,
                                       float(design["material"]["ior"]), walls, shapes, photons, seed,
-                                      max_bounces)
+                                      max_bounces, emitter)
     return walls, images, info
 
 
@@ -59,7 +69,8 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
     walls, point, info = render_design(design_path, image_px, photons, seed, max_bounces, 0.0)
     _, led, led_info = render_design(design_path, image_px, photons, seed + 1, max_bounces)
     figures = {"walls": {}, "lost_share": info["lost"], "trapped_share": info["trapped"],
-               "led_radius_mm": design["light"]["radius"], "photons": photons}
+               "led_radius_mm": design["light"]["radius"], "photons": photons,
+               "real_light": _real_light(design["light"])}
     for k, wall in enumerate(walls):
         target_path = design_path.parent / design["walls"][k]["target"]
         target = image.letterbox(artifacts.read_linear_png16(target_path), *point[k].shape)
@@ -72,3 +83,30 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
         artifacts.write_png(out_dir / f"{wall.name}_led.png", led[k])
         artifacts.write_npz(out_dir / f"{wall.name}.npz", point=point[k], led=led[k])
     return figures
+
+
+def optimizer_agreement(out_dir, reference_npz, names: list[str]) -> dict[str, float]:
+    """Pearson r between verify's point-light render of each wall (``out_dir/<wall>.npz``)
+    and the optimizer's own final render of it (``reference_npz``, one array per wall,
+    written by the optimize stage), the verify render resampled to the optimizer's shape.
+
+    The two trace the same lens with different tracers (the exported STL with Fresnel
+    and every bounce vs the optimizer's splatting), so r near 1 says the exported file
+    is the lens that was optimized.  Returns {wall: r}.
+    """
+    from . import image
+
+    reference = artifacts.read_npz(reference_npz)
+    out = {}
+    for name in names:
+        mine = artifacts.read_npz(Path(out_dir) / f"{name}.npz")["point"]
+        theirs = np.asarray(reference[name], np.float64)
+        out[name] = metrics.pearson(image.letterbox(mine, *theirs.shape), theirs)
+    return out
+
+
+def _real_light(light: dict) -> str:
+    """The second render's light, in words."""
+    if light.get("type") == "collimated":
+        return f"beam ±{light['divergence_deg']:g}°"
+    return f"LED {light['radius']:g} mm"

@@ -2,14 +2,22 @@
 # Stage 0: what the machine needs besides Python packages.
 #  - libLLVM 19: Dr.Jit's CPU backend aborts on Debian's libllvm14/15 ("Cannot select fminimum").
 #  - libGL / GLib: pymeshlab's wheel links against them.
+#  - Chromium: the test suite opens report.html in a real headless browser.
+#  - ADMesh: the STL checker slicers' repair code descends from; export asks it whether
+#    lens.stl needs any repair (none may be needed), and the tests do too.
 set -euo pipefail
 have_llvm() { ls /usr/lib/*/libLLVM-19.so* /usr/lib/llvm-19/lib/libLLVM*.so* >/dev/null 2>&1; }
 have_gl() { ldconfig -p | grep -q 'libGL.so.1' && ldconfig -p | grep -q 'libgthread-2.0.so.0'; }
-if have_llvm && have_gl; then exit 0; fi
+have_browser() { command -v chromium >/dev/null || command -v chromium-browser >/dev/null; }
+have_admesh() { command -v admesh >/dev/null; }
+if have_llvm && have_gl && have_browser && have_admesh; then exit 0; fi
 if ! command -v apt-get >/dev/null; then
   echo "lampfab setup: need libLLVM 19 and libGL; install them with your package manager" >&2
   exit 1
 fi
 SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
 $SUDO apt-get update -qq
-DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libllvm19 libgl1 libglib2.0-0 >/dev/null
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libllvm19 libgl1 libglib2.0-0 admesh >/dev/null
+# Only the tests need the browser: a distribution without the package still designs lamps.
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null \
+  || echo "lampfab setup: could not install chromium; the report's browser test will fail" >&2

@@ -15,13 +15,14 @@ import pytest
 from lampfab import checks, surface
 from lampfab.checks_distance import closest_on_triangles, distance_to_mesh
 from lampfab.checks_geometry import compute_fields
-from lampfab.profile import Fabrication, load_fabrication
+from lampfab.profile import PROFILE_DIR, Fabrication, load_fabrication
 
 m3 = pytest.importorskip("manifold3d")
 
 R, H = 30.0, 40.0
 NU, NV = 64, 16
 SAMPLES = (256, 64)
+ROOT_FAB = PROFILE_DIR / "fab"
 CYL = surface.Cylinder(R, H)
 LIGHT = np.array([0.0, 0.0, 20.0])
 
@@ -283,15 +284,67 @@ def test_led_inside_material_fails_drain():
     assert not r["passed"] and "inside material" in r["note"]
 
 
-def test_cnc3_drain_note_counts_setups():
-    r = run(PLAIN, inner_cylinder(r=4.0), fab_for("cnc3"))["drain"]
-    assert r["passed"] and "2 setups" in r["note"] and "4 setups" in r["note"]
+def test_plain_cylinder_on_two_3axis_setups_fails_tool_axis_at_the_sides():
+    # Two setups 180 deg apart: the cylinder's sides, halfway between them, are parallel to the tool.
+    r = run(PLAIN, inner_cylinder(r=4.0), fab_for("cnc3", setups=2, max_tool_angle_deg=70.0))["tool_axis"]
+    assert r["applies"] and not r["passed"] and r["value"] == pytest.approx(90.0, abs=0.5)
+    offset = float(r["note"].split("first tool axis at u ")[1].split(" deg")[0])
+    assert abs((r["worst"]["u_deg"] - offset) % 180.0 - 90.0) <= 360.0 / SAMPLES[0] + 1e-6
+    assert "3 setups are enough" in r["note"]                      # 60 deg from a tool axis at worst
+
+
+def test_plain_cylinder_on_four_3axis_setups_passes_tool_axis():
+    r = run(PLAIN, inner_cylinder(r=4.0), fab_for("cnc3", setups=4, max_tool_angle_deg=70.0))["tool_axis"]
+    assert r["passed"] and r["value"] == pytest.approx(45.0, abs=1.0)
+
+
+def test_ridge_round_the_lens_fails_tool_axis_midway_between_setups():
+    # A ridge all around at z 20 mm: its flanks tilt ~39 deg up or down. Sideways tilt never
+    # matters (every azimuth is within 45 deg of one of 4 setups), tilt along the axis adds:
+    # midway between two setups the flank is acos(cos 39 cos 45) ~ 57 deg from both tools.
+    heights = bump(0.0, 20.0, 4.0, 1e9, 3.0)
+    fab = fab_for("cnc3", setups=4, max_tool_angle_deg=50.0)
+    res = run(heights, inner_cylinder(r=4.0), fab)
+    r = res["tool_axis"]
+    assert res["max_slope"]["passed"]
+    slope = res["max_slope"]["value"]
+    assert not r["passed"]
+    assert r["value"] == pytest.approx(np.degrees(np.arccos(np.cos(np.radians(slope)) * np.cos(np.pi / 4))), abs=0.5)
+    offset = float(r["note"].split("first tool axis at u ")[1].split(" deg")[0])
+    assert abs((r["worst"]["u_deg"] - offset) % 90.0 - 45.0) <= 360.0 / SAMPLES[0] + 1e-6
+    assert abs(abs(r["worst"]["z_mm"] - 20.0) - 3.0) < 1.0                        # on a flank
+
+
+def test_tool_axis_applies_to_3axis_only():
+    res = run(PLAIN, inner_cylinder(r=4.0), fab_for("cnc4"))
+    assert not res["tool_axis"]["applies"] and "radial" in res["tool_axis"]["note"]
+    assert "slope against the tool axis" in res["max_slope"]["note"]
 
 
 def test_wide_cavity_behind_a_narrow_bore_fails_cavity_access_on_cnc():
-    r = run(PLAIN, inner_cylinder(r=12.0), fab_for("cnc4"))["cavity_access"]
-    assert not r["passed"] and r["value"] == pytest.approx(12.0, abs=1e-4)
+    iv, fi = inner_cylinder(r=12.0)
+    r = run(PLAIN, (iv, fi), fab_for("cnc4"))["cavity_access"]
+    # The floor's ring outside the bore faces up, hidden from a tool coming through the bore.
+    floor = 0.5 * 64 * 12.0 ** 2 * np.sin(2 * np.pi / 64)
+    assert not r["passed"] and r["value"] == pytest.approx(floor - np.pi * 5.0 ** 2, rel=1e-6)
     assert np.hypot(*r["worst"]["xyz_mm"][:2]) == pytest.approx(12.0, abs=1e-4)
+    assert r["worst"]["z_mm"] == pytest.approx(6.0)
+
+
+def test_counterbore_makes_the_cavity_reachable():
+    iv, fi = inner_cylinder(r=4.0)                                  # floor 4 mm, counterbore 5 mm
+    r = run(PLAIN, (iv, fi), fab_for("cnc4"))["cavity_access"]
+    assert r["passed"] and r["value"] == 0.0 and "counterbore" in r["note"]
+
+
+def test_cavity_widening_upward_fails_cavity_access_even_with_a_counterbore():
+    # A frustum r 4 at its floor to r 9 at its top: its walls face up into the cavity.
+    body = m3.Manifold.cylinder(20.0, 4.0, 9.0, 64).translate((0, 0, 8.0))
+    iv, fi = _arrays(body)
+    r = run(PLAIN, (iv, fi), fab_for("cnc3", setups=4, max_tool_angle_deg=70.0))["cavity_access"]
+    walls = np.pi * (4.0 + 9.0) * np.hypot(20.0, 5.0)               # the cone's lateral area
+    assert not r["passed"] and r["value"] == pytest.approx(walls, rel=0.01)
+    assert np.hypot(*r["worst"]["xyz_mm"][:2]) == pytest.approx(9.0, abs=1e-4)
 
 
 # ------------------------------------------------------------------ paint
@@ -373,3 +426,12 @@ def test_fabrication_profiles_load_and_set_every_field(name, process):
     fields = {f.name for f in dataclasses.fields(Fabrication)} - {"path"}
     assert keys == fields
     assert (fab.tool_radius_mm > 0) == process.startswith("cnc")
+
+
+def test_3axis_profile_needs_two_setups(tmp_path):
+    from lampfab.errors import LampfabError
+
+    text = (ROOT_FAB / "acrylic_cnc3.toml").read_text().replace("setups = 4", "setups = 1")
+    (tmp_path / "one.toml").write_text(text)
+    with pytest.raises(LampfabError, match=r"one\.toml: setups 1: 3-axis milling .* at least 2"):
+        load_fabrication(str(tmp_path / "one.toml"))

@@ -70,6 +70,26 @@ def test_verify_reports_figures_and_report_embeds_images(lamp):
 
 
 @pytest.mark.slow
+def test_exported_files_match_the_optimizer_and_come_with_finishing_advice(lamp):
+    out, _, _ = lamp
+    export = json.loads((out / "export.json").read_text())["figures"]
+    assert export["admesh"]["repairs"] == 0 and export["admesh"]["parts"] == 1       # a slicer takes it as is
+    figures = json.loads((out / "verify.json").read_text())["figures"]
+    agree = [figures["walls"][w]["optimizer_pearson"] for w in ("front", "left", "right")]
+    # The tiny profile's optimizer splats only 20k photons onto 16 px walls, so its own render
+    # is noisy; the default profile reaches OPTIMIZER_MATCH_R (README). A wrong export (e.g. a
+    # mirrored or rotated lens) would fall far below this.
+    assert min(agree) == figures["optimizer_match_min"] and min(agree) > 0.85
+    assert figures["optimizer_match_limit"] == 0.98
+    study = figures["tolerance"]
+    assert study["amplitudes_mm"][0] == 0.0 and study["max_drop"][0] == 0.0
+    assert study["profile_error_mm"] == 0.05                                           # sla_resin's
+    assert any("lights the front wall" in p for p in figures["guidance"])
+    html = (out / "report.html").read_text()
+    assert "Finishing and tolerances" in html and "peak surface error" in html
+
+
+@pytest.mark.slow
 def test_rerun_is_a_no_op_and_profile_change_redoes_work(lamp, tmp_path):
     out, _, build = lamp
     again = make("lamp", f"BUILD={build}", "NAME=apple", f"PROFILE={TINY}", "ALLOW_FAIL=1")
@@ -81,10 +101,13 @@ def test_rerun_is_a_no_op_and_profile_change_redoes_work(lamp, tmp_path):
 
 
 @pytest.mark.slow
-def test_a_failed_check_stops_with_one_line(lamp):
+def test_a_failed_check_stops_with_one_line(lamp, tmp_path):
     out, _, build = lamp
-    (out / "checks.json").unlink()
-    run = make("check", f"BUILD={build}", "NAME=apple", f"PROFILE={TINY}")
+    # A printer that wants 40 mm walls: no lens of this size has them everywhere.
+    strict = tmp_path / "thick_walls.toml"
+    sla = (ROOT / "profiles" / "fab" / "sla_resin.toml").read_text()
+    strict.write_text(re.sub(r"(?m)^min_wall_mm = .*$", "min_wall_mm = 40.0", sla))
+    run = make("check", f"BUILD={build}", "NAME=apple", f"PROFILE={TINY}", f"FAB={strict}")
     assert run.returncode != 0
     lines = [ln for ln in run.stderr.splitlines() if ln.startswith("lampfab:")]
     assert len(lines) == 1 and "failed" in lines[0] and "Traceback" not in run.stderr
@@ -108,37 +131,6 @@ def test_help_is_instant_and_lists_the_stages():
     for stage in ["prepare", "plan", "init", "optimize", "solid", "check", "export", "verify", "lamp"]:
         assert stage in run.stdout
     assert "mitsuba" not in run.stderr and "OCP" not in run.stderr  # heavy imports stay lazy
-
-
-@pytest.mark.slow
-def test_optimize_resumes_after_sigkill(tmp_path):
-    import os
-    import signal
-    import time
-
-    profile = tmp_path / "resume.toml"
-    profile.write_text(TINY.read_text().replace("iterations = 2", "iterations = 40"))
-    out = tmp_path / "b" / "apple"
-    prep = make("init", f"BUILD={tmp_path / 'b'}", "NAME=apple", f"PROFILE={profile}")
-    assert prep.returncode == 0, prep.stderr[-2000:]
-    args = [sys.executable, "stages/30_optimize.py", "--out", str(out), "--profile", str(profile)]
-    proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 120
-    while not (out / "checkpoint.npz").exists() and time.time() < deadline:
-        time.sleep(0.2)
-    time.sleep(1.0)
-    os.kill(proc.pid, signal.SIGKILL)
-    proc.wait()
-    assert (out / "checkpoint.npz").exists() and not (out / "optimize.json").exists()
-    saved = np.load(out / "checkpoint.npz")
-    assert 0 < int(saved["step"]) < 40
-    again = subprocess.run(args, cwd=ROOT, capture_output=True, text=True)
-    assert again.returncode == 0, again.stderr[-2000:]
-    assert "resuming" in again.stdout
-    report = json.loads((out / "optimize.json").read_text())["figures"]
-    assert report["resumed"] and report["steps"] == 40
-    assert not (out / "checkpoint.npz").exists()
-    assert not list(out.glob(".*.tmp*")) and not list(out.glob(".heightmap*"))  # no half-written files
 
 
 @pytest.mark.slow

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import io
+import os
 import re
 
 import numpy as np
@@ -71,8 +72,12 @@ def test_report_self_contained(tmp_path, walls):
     assert "<li class='ok'>wall thickness ≥ 2 mm</li>" in text
     assert "<code>lamp.step</code>" in text
     assert text.index("Checks") < text.index("Next steps")
-    # Written atomically: no temporary files left beside it.
+    # Written atomically: no temporary files left beside it, and readable as any new
+    # file of this user is (not the temporary file's private 0600).
     assert [p.name for p in out.parent.iterdir()] == ["report.html"]
+    umask = os.umask(0)
+    os.umask(umask)
+    assert out.stat().st_mode & 0o777 == 0o666 & ~umask
 
 
 def test_missing_blur_shows_placeholder(tmp_path, walls):

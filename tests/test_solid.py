@@ -70,6 +70,23 @@ def test_bore_wider_than_the_inner_floor_is_refused():
     assert solid.plan_bore(v, f, 19.3).floor_reach_mm == pytest.approx(20 * np.cos(np.pi / 32))
 
 
+def test_counterbore_opens_the_whole_floor():
+    v, f = inner()       # the floor reaches 20 mm: a counterbore needs >= 20.5
+    lens = solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=20.5)
+    assert lens.bore.counterbore and lens.bore.z_top_mm == lens.bore.z_floor_mm == 12.0
+    topo = solid.edge_check(lens.faces)
+    assert topo["watertight"] and topo["winding_consistent"] and topo["components"] == 1
+    ov, of = surface.closed_outer_mesh(CYL, bumps(), 2)
+    expected = solid.mesh_volume(ov, of) - solid.mesh_volume(v, f) - lens.bore.polygon_area_mm2 * 12.0
+    assert lens.volume_mm3 == pytest.approx(expected, rel=1e-9)
+    for p in ((0.0, 0.0, 6.0), (19.0, 0.0, 11.9), (0.0, 0.0, 40.0)):       # in the counterbore and cavity
+        assert abs(winding_number(lens.vertices, lens.faces, np.array(p))) < 1e-6, p
+    for p in ((21.0, 0.0, 6.0), (20.3, 0.0, 12.1)):                        # glass beside it, the shoulder
+        assert winding_number(lens.vertices, lens.faces, np.array(p)) == pytest.approx(1.0, abs=1e-6), p
+    with pytest.raises(LampfabError, match=r"<= 19\.40 or >= 20\.50 \(a counterbore"):
+        solid.plan_bore(v, f, 20.0)
+
+
 def test_inner_layer_without_flat_bottom_is_refused():
     import trimesh
 

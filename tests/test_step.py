@@ -80,6 +80,43 @@ def test_step_bore_opens_the_cavity(written):
     assert state(0.0, 0.0, 74.0) == TopAbs_IN
 
 
+def test_step_counterbore_is_one_valid_solid_matching_the_stl(tmp_path):
+    from OCP.BRepClass3d import BRepClass3d_SolidClassifier
+    from OCP.gp import gp_Pnt
+    from OCP.STEPControl import STEPControl_Reader
+    from OCP.TopAbs import TopAbs_IN, TopAbs_OUT
+
+    v, f = inner(sections=16)
+    mesh = solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=20.5)
+    info = step.write_step(tmp_path / "lens.step", CYL, bumps(), v, f, 20.5, *SAMPLES,
+                           expected_volume_mm3=mesh.volume_mm3)
+    back = step.read_step(tmp_path / "lens.step")
+    assert back["n_solids"] == 1 and back["valid"] and back["closed"]
+    assert back["faces"] == info["faces"] == 4 + 16 + 16 + 1     # the floor became the shoulder ring
+    assert back["volume_mm3"] == pytest.approx(mesh.volume_mm3, rel=5e-3)
+    reader = STEPControl_Reader()
+    reader.ReadFile(str(tmp_path / "lens.step"))
+    reader.TransferRoots()
+    shape = reader.OneShape()
+    for p, want in (((0.0, 0.0, 11.9), TopAbs_OUT), ((19.0, 0.0, 6.0), TopAbs_OUT), ((21.0, 0.0, 6.0), TopAbs_IN),
+                    ((20.3, 0.0, 12.1), TopAbs_IN), ((0.0, 0.0, 40.0), TopAbs_OUT)):
+        assert BRepClass3d_SolidClassifier(shape, gp_Pnt(*p), 1e-7).State() == want, p
+
+
+def test_step_bytes_are_reproducible_with_source_date_epoch(tmp_path, monkeypatch):
+    v, f = inner()
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    texts = []
+    for name in ("a", "b"):
+        step.write_step(tmp_path / name / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES)
+        texts.append((tmp_path / name / "lens.step").read_bytes())
+    assert texts[0] == texts[1]
+    assert b"FILE_NAME('lens.step','2023-11-14T22:13:20'" in texts[0] and b"PRODUCT('lens','lens'" in texts[0]
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "yesterday")
+    with pytest.raises(LampfabError, match="SOURCE_DATE_EPOCH='yesterday': give whole seconds"):
+        step.write_step(tmp_path / "c" / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES)
+
+
 def test_step_refuses_a_bore_too_wide_and_writes_nothing(tmp_path):
     v, f = inner()
     with pytest.raises(LampfabError, match="too large"):

@@ -1,0 +1,90 @@
+"""Post-processing guidance for the made lens: which side faces where, how to finish it,
+and how much uneven removal the projection tolerates (``tolerance_study``).
+
+``advice`` returns plain paragraphs (for verify.json); ``html`` renders them with the
+tolerance study's table for report.html.  Finishing steps per process come from the
+shared fabrication facts ("wet sand 400 -> 2000 grit, then polish; anneal after
+machining", makers' reports) unless a sentence says otherwise.
+"""
+
+from __future__ import annotations
+
+import html as _html
+
+from .profile import Fabrication
+from .room import SECTOR_CENTRE_DEG, SECTOR_WIDTH_DEG
+
+_AXIS = {0.0: "+x", 90.0: "+y", 180.0: "-x", 270.0: "-y"}
+
+_FINISH = {
+    "sla": ("Wash and post-cure as the resin maker says. Print it upright on a raft or supports with "
+            "a gap under the bore (see the drain check), so no support touches the outer surface. "
+            "Wet-sand the outer surface through 400, 600, 800, 1200 and 2000 grit, each grit only until the "
+            "previous one's scratches are gone, then polish with a plastic polish; or, instead of the last "
+            "grits, dip or brush a thin clear coat of the same resin and cure it: it fills layer lines while "
+            "removing nothing."),
+    "cnc3": ("Anneal the acrylic after machining (it relieves the cutting stress that otherwise crazes "
+             "when polished or glued). Wet-sand only where tool marks or the witness lines between "
+             "setups show, through 400, 600, 800, 1200 and 2000 grit, then polish with a plastic polish "
+             "or a buffing wheel with fine compound. Flame polishing is for edges: on the optical surface "
+             "it melts the relief unevenly."),
+    "glass": ("The optics shop grinds and polishes it; give them lens.step and ask for a form error within "
+              "the allowance below."),
+}
+_FINISH["cnc4"] = _FINISH["cnc3"].replace(" or the witness lines between setups", "")
+
+
+def orientation(wall_names: list[str]) -> str:
+    """Which part of the lens lights which wall, in the STL/STEP frame."""
+    parts = []
+    for name in wall_names:
+        c = SECTOR_CENTRE_DEG[name]
+        lo, hi = c - SECTOR_WIDTH_DEG / 2, c + SECTOR_WIDTH_DEG / 2
+        parts.append(f"the {_AXIS[c]} side (u {lo:g} to {hi:g} deg) lights the {name}"
+                     + (" behind the lamp" if name == "floor" else " wall"))
+    return ("In lens.stl and lens.step (millimetres, z up, the base on z = 0) " + "; ".join(parts) + ". "
+            "Set the lamp with its +y side square to the front wall, the walls at the design's distance. "
+            "Mark +y on the base before the part leaves the printer or the machine: the lens looks "
+            "much the same from every side.")
+
+
+def advice(fab: Fabrication, wall_names: list[str], light_mm, study: dict) -> list[str]:
+    """Plain-text paragraphs: orientation, the LED, finishing, the polishing allowance."""
+    allowance = study["allowance_mm"] * 1000
+    bound = "at least " if study["allowance_at_least"] else ""
+    error = study["profile_error_mm"] * 1000
+    within = study["profile_error_drop"] <= study["r_drop"]
+    out = [
+        orientation(wall_names),
+        (f"The LED goes up through the bore in the base (radius {fab.mount_radius_mm:g} mm) on a stalk, its "
+         f"emitter at the lamp's centre, {light_mm[2]:g} mm above the base on the axis; the design assumes it "
+         f"shines in every direction from there."),
+        _FINISH[fab.process],
+        (f"Polishing allowance: uneven removal of up to {bound}{allowance:.0f} um (peak, over patches of "
+         f"~{study['correlation_mm']:g} mm) keeps every wall's Pearson r within {study['r_drop']} of the design. "
+         f"This profile's surface error, {error:.0f} um, costs r {study['profile_error_drop']:.3f}"
+         + (" (within it)." if within else f": more than {study['r_drop']}, so finish more carefully than the "
+            f"profile assumes.")
+         + " Even removal (the same depth everywhere) does not matter; scratches finer than ~1 mm scatter "
+           "light into a haze instead of moving the image, so finish to the last grit."),
+    ]
+    return out
+
+
+def html(paragraphs: list[str], study: dict) -> str:
+    """The report section: the paragraphs and the tolerance study as a table."""
+    walls = list(study["walls"])
+    head = "".join(f"<th>r {_html.escape(w)}</th>" for w in walls)
+    rows = []
+    for k, a in enumerate(study["amplitudes_mm"]):
+        drop = study["max_drop"][k]
+        cls = "ok" if drop <= study["r_drop"] else "fail"
+        cells = "".join(f"<td>{study['walls'][w][k]:.3f}</td>" for w in walls)
+        mark = " (profile)" if a == study["profile_error_mm"] else ""
+        rows.append(f"<tr><td>{a * 1000:.0f} um{mark}</td>{cells}<td class=\"{cls}\">{drop:.3f}</td></tr>")
+    table = (f"<table><tr><th>peak surface error</th>{head}<th>largest drop</th></tr>{''.join(rows)}</table>"
+             f"<p class=\"extra\">One smooth random error field (correlation {study['correlation_mm']:g} mm) "
+             f"scaled to each peak error; the lens's facets (those of lens.stl, less the bore) traced with {study['photons']:,} photons "
+             f"(the same photons at every amplitude), point light. Drops of a few thousandths are the tracer's "
+             f"noise at this photon count.</p>")
+    return "".join(f"<p>{_html.escape(p)}</p>" for p in paragraphs) + table

@@ -1,0 +1,140 @@
+"""The panel as a STEP solid: the relief as one B-spline face, five planar faces.
+
+The relief's B-spline is the heightmap's own spline: a degree-3 surface through the
+points (x_i, T + h_ij, z_j) at the nodes with not-a-knot end conditions in both
+directions, which is exactly what ``surface.open_matrix`` samples (parameters: u = x,
+v = z in mm; x and z being linear in them, the interpolant reproduces them exactly).
+The sides and the back face are planar, each side bounded above by the relief's
+boundary curve; the six faces are sewn into one closed shell.  Units: mm.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import panel
+from .errors import GeometryError
+from .step import OCC_TOLERANCE_MM, shape_figures, write_shape
+
+
+def bspline(shape: panel.PanelShape, heights: np.ndarray):
+    """The relief as an OCCT ``Geom_BSplineSurface`` (mm), interpolating the nodes."""
+    from OCP.Geom import Geom_BSplineSurface
+    from OCP.gp import gp_Pnt
+    from OCP.TColgp import TColgp_Array2OfPnt
+    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+    from scipy.interpolate import make_interp_spline
+
+    nx, nz = heights.shape
+    x, z = shape.node_x(nx), shape.node_z(nz)
+    pts = panel.points(shape, heights)                                    # (nx, nz, 3)
+    in_z = make_interp_spline(z, pts.transpose(1, 0, 2).reshape(nz, -1), k=3)
+    rows = in_z.c.reshape(-1, nx, 3).transpose(1, 0, 2)                 # (nx, poles_z, 3)
+    in_x = make_interp_spline(x, rows.reshape(nx, -1), k=3)
+    poles = in_x.c.reshape(-1, rows.shape[1], 3)                        # (poles_x, poles_z, 3)
+    arr = TColgp_Array2OfPnt(1, poles.shape[0], 1, poles.shape[1])
+    for i in range(poles.shape[0]):
+        for j in range(poles.shape[1]):
+            arr.SetValue(i + 1, j + 1, gp_Pnt(*map(float, poles[i, j])))
+
+    def array(values, cls):
+        out = cls(1, len(values))
+        for k, value in enumerate(values):
+            out.SetValue(k + 1, value)
+        return out
+
+    (ux, mx), (uz, mz) = (np.unique(t, return_counts=True) for t in (in_x.t, in_z.t))
+    return Geom_BSplineSurface(arr, array(list(map(float, ux)), TColStd_Array1OfReal),
+                               array(list(map(float, uz)), TColStd_Array1OfReal),
+                               array(list(map(int, mx)), TColStd_Array1OfInteger),
+                               array(list(map(int, mz)), TColStd_Array1OfInteger), 3, 3, False, False), poles.shape
+
+
+def deviation_mm(shape: panel.PanelShape, heights: np.ndarray, surface) -> float:
+    """Largest distance between the B-spline and the heightmap's spline, at the nodes and
+    half-way between them (mm)."""
+    from OCP.gp import gp_Pnt
+
+    nx, nz = heights.shape
+    mx, mz = 2 * nx - 1, 2 * nz - 1
+    true = panel.points(shape, panel.sample(shape, heights, mx, mz))
+    p = gp_Pnt()
+    worst = 0.0
+    for i, x in enumerate(shape.node_x(mx)):
+        for j, z in enumerate(shape.node_z(mz)):
+            surface.D0(float(x), float(z), p)
+            worst = max(worst, float(np.linalg.norm(np.array([p.X(), p.Y(), p.Z()]) - true[i, j])))
+    return worst
+
+
+def build_solid(shape: panel.PanelShape, heights: np.ndarray):
+    """(TopoDS_Solid, figures): the relief face, four sides and the back face, sewn."""
+    from OCP.BRepBuilderAPI import (BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon,
+                                    BRepBuilderAPI_MakeSolid, BRepBuilderAPI_MakeWire, BRepBuilderAPI_Sewing)
+    from OCP.BRepLib import BRepLib
+    from OCP.gp import gp_Pnt
+    from OCP.TopAbs import TopAbs_SHELL
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    t0 = time.perf_counter()
+    surface, poles = bspline(shape, heights)
+    x0, x1 = -shape.width_mm / 2, shape.width_mm / 2
+    z0, z1 = 0.0, shape.height_mm
+    relief = BRepBuilderAPI_MakeFace(surface, x0, x1, z0, z1, OCC_TOLERANCE_MM)
+    if not relief.IsDone():
+        raise GeometryError(f"STEP: the relief's B-spline face failed ({relief.Error()})")
+    faces = [relief.Face()]
+
+    # Each side: the relief's boundary curve above, straight edges down to the back face.
+    sides = ((surface.UIso(x0), x0, None), (surface.UIso(x1), x1, None),
+             (surface.VIso(z0), None, z0), (surface.VIso(z1), None, z1))
+    for curve, x, z in sides:
+        top = BRepBuilderAPI_MakeEdge(curve).Edge()
+        lo, hi = (z0, z1) if x is not None else (x0, x1)
+        a = surface.Value(x, lo) if x is not None else surface.Value(lo, z)
+        b = surface.Value(x, hi) if x is not None else surface.Value(hi, z)
+        a0, b0 = gp_Pnt(a.X(), 0.0, a.Z()), gp_Pnt(b.X(), 0.0, b.Z())
+        wire = BRepBuilderAPI_MakeWire(top, BRepBuilderAPI_MakeEdge(b, b0).Edge(),
+                                       BRepBuilderAPI_MakeEdge(b0, a0).Edge(),
+                                       BRepBuilderAPI_MakeEdge(a0, a).Edge())
+        face = BRepBuilderAPI_MakeFace(wire.Wire(), True)
+        if not face.IsDone():
+            raise GeometryError(f"STEP: a side face of the panel failed ({face.Error()})")
+        faces.append(face.Face())
+    back = BRepBuilderAPI_MakePolygon(gp_Pnt(x0, 0, z0), gp_Pnt(x1, 0, z0), gp_Pnt(x1, 0, z1), gp_Pnt(x0, 0, z1),
+                                      True)
+    faces.append(BRepBuilderAPI_MakeFace(back.Wire(), True).Face())
+    sewing = BRepBuilderAPI_Sewing(1e-6)
+    for face in faces:
+        sewing.Add(face)
+    sewing.Perform()
+    explorer = TopExp_Explorer(sewing.SewedShape(), TopAbs_SHELL)
+    if not explorer.More():
+        raise GeometryError("STEP: sewing the panel's faces gave no shell")
+    solid = BRepBuilderAPI_MakeSolid(TopoDS.Shell_s(explorer.Current())).Solid()
+    BRepLib.OrientClosedSolid_s(solid)
+    build_s = time.perf_counter() - t0
+    return solid, {"build_s": build_s, "poles_u": int(poles[0]), "poles_v": int(poles[1]), "faces": len(faces),
+                   "deviation_mm": deviation_mm(shape, heights, surface)}
+
+
+def write_step(path, shape: panel.PanelShape, heights: np.ndarray, expected_volume_mm3: float) -> dict:
+    """Write the panel as a STEP (AP214, mm) solid; figures as ``step.write_step``'s.
+
+    Raises GeometryError if the solid is not one valid closed solid of the expected
+    volume (within ``tolerances.VOLUME_REL``)."""
+    from .tolerances import VOLUME_REL
+
+    solid, info = build_solid(shape, heights)
+    figs = shape_figures(solid)
+    rel = abs(figs["volume_mm3"] - expected_volume_mm3) / expected_volume_mm3
+    if not (figs["valid"] and figs["closed"] and figs["n_solids"] == 1 and rel <= VOLUME_REL):
+        raise GeometryError(f"STEP: the panel solid fails its checks: {figs}, volume {rel:.2%} off the STL's")
+    info.update(figs)
+    info["write_s"] = write_shape(path, solid)
+    info["file_bytes"] = Path(path).stat().st_size
+    return info

@@ -1,0 +1,146 @@
+"""Targets that are not one picture: a line of text, and a 360° panorama around the room.
+
+Both return what ``image.load_target`` + ``image.letterbox`` return for a picture:
+(rows, cols) float64 linear luminance in [0, 1], one array per wall.
+
+* Text is set in the bundled DejaVu Sans Bold (``data/DejaVuSans-Bold.ttf``, Bitstream
+  Vera licence beside it), white on black, centred, broken into the number of lines
+  that makes the letters largest on the wall.
+* A panorama is a 360° cylindrical (or equirectangular) image: its width spans all
+  azimuths, its centre column is the front wall, the left wall is a quarter to the
+  left, the right wall a quarter to the right.  Each wall pixel takes the panorama
+  pixel seen from the light in that direction, on a cylinder of radius
+  ``wall_distance_mm`` with square pixels, so straight horizons stay level and the
+  seams between walls line up.  The panorama's middle row is at the walls' image
+  centre.  The floor, which the wrap does not reach, shows the back quarter.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .errors import LampfabError
+from .room import Wall
+
+FONT = Path(__file__).resolve().parent / "data" / "DejaVuSans-Bold.ttf"
+TEXT_MARGIN = 0.08   # blank border, as a share of the wall image on each side
+_SUPERSAMPLE = 4     # glyphs drawn 4x larger and box-averaged: anti-aliased edges
+_MAX_TEXT = 200      # characters; more would be unreadable on a wall at any size
+
+
+def text_image(text: str, rows: int, cols: int) -> np.ndarray:
+    """``text`` set as large as fits into (rows, cols): (rows, cols) float64 in [0, 1].
+
+    Newlines in ``text`` are kept; otherwise words are spread over 1..n lines,
+    whichever gives the largest letters.
+    """
+    from PIL import Image, ImageDraw, ImageFont
+
+    words_by_line = [ln.split() for ln in str(text).splitlines()]
+    if not any(words_by_line):
+        raise LampfabError("TEXT is empty: give the words to project, e.g. TEXT=\"Happy birthday\"")
+    if len(text) > _MAX_TEXT:
+        raise LampfabError(f"TEXT has {len(text)} characters; at most {_MAX_TEXT} fit legibly on a wall")
+    probe = 100
+    font = ImageFont.truetype(str(FONT), probe)
+    box_w, box_h = cols * (1 - 2 * TEXT_MARGIN), rows * (1 - 2 * TEXT_MARGIN)
+    best = None
+    for lines in _layouts(words_by_line):
+        layout = "\n".join(lines)
+        left, top, right, bottom = ImageDraw.Draw(Image.new("L", (1, 1))).multiline_textbbox(
+            (0, 0), layout, font=font, align="center")
+        scale = min(box_w / (right - left), box_h / (bottom - top))
+        if best is None or scale > best[0]:
+            best = (scale, layout)
+    scale, layout = best
+    size = max(1, int(probe * scale * _SUPERSAMPLE))
+    font = ImageFont.truetype(str(FONT), size)
+    big = Image.new("L", (cols * _SUPERSAMPLE, rows * _SUPERSAMPLE), 0)
+    draw = ImageDraw.Draw(big)
+    centre = (big.width / 2, big.height / 2)
+    draw.multiline_text(centre, layout, fill=255, font=font, anchor="mm", align="center")
+    # Glyph coverage is the share of a pixel lit, so it is linear luminance as is.
+    return np.asarray(big.reduce(_SUPERSAMPLE), np.float64) / 255.0
+
+
+def _layouts(words_by_line: list[list[str]]):
+    """Candidate line breaks: the user's lines, each split into k balanced lines."""
+    if len(words_by_line) > 1:
+        yield [" ".join(w) for w in words_by_line]
+        return
+    words = words_by_line[0]
+    for k in range(1, len(words) + 1):
+        yield _balanced(words, k)
+
+
+def _balanced(words: list[str], k: int) -> list[str]:
+    """``words`` greedily cut into k lines of about equal length in characters."""
+    target = sum(len(w) + 1 for w in words) / k
+    lines, current = [], []
+    for i, word in enumerate(words):
+        current.append(word)
+        left_words, left_lines = len(words) - i - 1, k - len(lines) - 1
+        if left_lines and (len(" ".join(current)) >= target or left_words == left_lines):
+            lines.append(" ".join(current))
+            current = []
+    if current:
+        lines.append(" ".join(current))
+    return lines
+
+
+def panorama_slice(panorama: np.ndarray, wall: Wall, light_mm: np.ndarray, radius_mm: float,
+                   centre_height_mm: float, rows: int, cols: int) -> np.ndarray:
+    """The part of a 360° ``panorama`` ((H, W) float64 linear, W spans 360°) that
+    ``wall`` shows, seen from ``light_mm`` ((3,) mm): (rows, cols) float64.
+
+    ``radius_mm``: the cylinder the panorama is wrapped on; ``centre_height_mm``: the
+    height above the light of the panorama's middle row.  Outside the panorama's
+    height the wall stays dark.
+    """
+    from scipy import ndimage
+
+    if wall.name == "floor":
+        return _back_quarter(panorama, rows, cols)
+    pano = _resized(panorama, 4 * cols)
+    h, w = pano.shape
+    cc, rr = np.meshgrid((np.arange(cols) + 0.5) / cols, (np.arange(rows) + 0.5) / rows)
+    points = wall.origin + cc[..., None] * wall.right + rr[..., None] * wall.down
+    d = points - light_mm
+    azimuth = np.degrees(np.arctan2(d[..., 1], d[..., 0]))
+    height = d[..., 2] * radius_mm / np.hypot(d[..., 0], d[..., 1])
+    pixel_mm = 2 * np.pi * radius_mm / w
+    col = (w / 2 - 0.5 + (90.0 - azimuth) / 360.0 * w) % w
+    row = (h - 1) / 2 - (height - centre_height_mm) / pixel_mm
+    out = ndimage.map_coordinates(pano, [row, col], order=1, mode="grid-wrap")
+    out[(row < -0.5) | (row > h - 0.5)] = 0.0
+    return np.clip(out, 0.0, 1.0)
+
+
+def _back_quarter(panorama: np.ndarray, rows: int, cols: int) -> np.ndarray:
+    from .image import letterbox
+
+    w = panorama.shape[1]
+    back = np.roll(panorama, w // 2, axis=1)[:, 3 * w // 8: 5 * w // 8]  # azimuth 225°..315°
+    return letterbox(back, rows, cols)
+
+
+def _resized(image: np.ndarray, width: int) -> np.ndarray:
+    """Box-averaged to ``width`` columns when wider (no aliasing when sampling)."""
+    from PIL import Image
+
+    h, w = image.shape
+    if w <= width:
+        return image
+    rows = max(1, int(round(h * width / w)))
+    return np.asarray(Image.fromarray(image.astype(np.float32)).resize(
+        (width, rows), Image.Resampling.BOX), np.float64)
+
+
+def check_panorama(panorama: np.ndarray, path) -> None:
+    """A panorama must be wider than tall (it spans 360°); else it is likely a photo."""
+    h, w = panorama.shape
+    if w < 2 * h:
+        raise LampfabError(f"{path}: {w}x{h} px is not a 360° panorama (expected at least twice as wide as "
+                           f"tall); use TARGET= for an ordinary picture")

@@ -1,0 +1,98 @@
+"""Files a shop accepts and what finishing may cost: ADMesh on the exported STL, the
+tolerance study and the post-processing guidance, on small lenses (seconds)."""
+
+import shutil
+
+import numpy as np
+import pytest
+
+from lampfab import guidance, lens, room, solid, stl, tolerance_study, trace
+from lampfab.profile import load_fabrication
+
+from test_solid import CYL, bumps, inner
+
+
+@pytest.fixture(scope="module")
+def small_lens():
+    v, f = inner()
+    return solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=6.0)
+
+
+def test_admesh_is_installed_by_the_setup():
+    # stages/00_setup.sh installs it; export relies on it to prove no slicer repair is needed.
+    assert shutil.which("admesh"), "admesh missing: run bash stages/00_setup.sh"
+
+
+def test_exported_stl_needs_no_repair_in_admesh(small_lens, tmp_path):
+    path = tmp_path / "lens.stl"
+    stl.write_stl(path, small_lens.vertices, small_lens.faces)
+    report = stl.admesh_check(path)
+    assert report["repairs"] == 0 and report["parts"] == 1 and report["disconnected_facets"] == 0
+    assert set(report) >= {"degenerate_facets", "edges_fixed", "facets_reversed", "normals_fixed"}
+
+
+def test_admesh_sees_a_flipped_facet_and_a_hole(small_lens, tmp_path):
+    faces = small_lens.faces.copy()
+    faces[10] = faces[10, ::-1]
+    stl.write_stl(tmp_path / "flipped.stl", small_lens.vertices, faces)
+    flipped = stl.admesh_check(tmp_path / "flipped.stl")
+    assert flipped["repairs"] > 0 and flipped["facets_reversed"] + flipped["normals_fixed"] > 0
+    stl.write_stl(tmp_path / "hole.stl", small_lens.vertices, small_lens.faces[1:])
+    assert stl.admesh_check(tmp_path / "hole.stl")["disconnected_facets"] > 0
+
+
+def test_error_field_is_smooth_periodic_and_peaks_at_one():
+    field = tolerance_study.error_field(CYL, (256, 65), 5.0, seed=3)
+    assert np.abs(field).max() == pytest.approx(1.0)
+    # Correlated over 5 mm with nodes ~1 mm apart: neighbours agree, and the seam (the last
+    # column to the first) is as smooth as anywhere else.
+    steps = np.abs(np.diff(field, axis=0, append=field[:1]))
+    assert steps.max() < 0.3 and steps[-1].max() < 0.3
+    assert np.corrcoef(field[:-1].ravel(), field[1:].ravel())[0, 1] > 0.9
+    assert not np.allclose(field, tolerance_study.error_field(CYL, (256, 65), 5.0, seed=4))
+
+
+@pytest.fixture(scope="module")
+def study_setup():
+    """A bumpy lens and its own render as the target: r is 1 for the unperturbed lens."""
+    v, f = inner(sections=32)
+    light = np.array([0.0, 0.0, 40.0])
+    walls = [room.Wall("front", np.array([-900.0, 1000.0, 715.0]), np.array([1800.0, 0.0, 0.0]),
+                       np.array([0.0, 0.0, -1350.0]))]
+    shapes = [room.image_shape(walls[0], 16)]
+    verts, faces = lens.optical_mesh(CYL, bumps(), 2, v, f)
+    target, _ = trace.render_walls(trace.MeshScene(verts, faces), light, 0.0, 1.5, walls, shapes, 40_000, 5, 8)
+    return v, f, light, walls, target
+
+
+def test_tolerance_study_finds_where_the_image_degrades(study_setup, monkeypatch):
+    v, f, light, walls, target = study_setup
+    monkeypatch.setattr(tolerance_study, "AMPLITUDES_MM", (0.05, 3.0))
+    res = tolerance_study.study(CYL, bumps(), 2, v, f, light, 1.5, walls, target, 40_000, 5, 8, 0.02)
+    assert res["amplitudes_mm"] == [0.0, 0.02, 0.05, 3.0]
+    r = res["walls"]["front"]
+    assert r[0] == pytest.approx(1.0)                       # same lens, same photons as the target
+    assert res["max_drop"][0] == 0.0
+    assert res["max_drop"][1] < res["r_drop"] < res["max_drop"][3]   # 3 mm of error ruins the image
+    assert res["allowance_mm"] == 0.05 and not res["allowance_at_least"]
+    assert res["profile_error_mm"] == 0.02 and res["profile_error_drop"] == res["max_drop"][1]
+
+
+def test_guidance_names_the_sides_finishing_and_allowance():
+    study = {"allowance_mm": 0.05, "allowance_at_least": False, "profile_error_mm": 0.02,
+             "profile_error_drop": 0.004, "r_drop": 0.02, "correlation_mm": 5.0, "photons": 1000,
+             "amplitudes_mm": [0.0, 0.02, 0.05, 0.1], "max_drop": [0.0, 0.004, 0.01, 0.05],
+             "walls": {"front": [0.9, 0.896, 0.89, 0.85]}}
+    fab = load_fabrication("acrylic_cnc3")
+    text = guidance.advice(fab, ["front", "left", "right"], np.array([0.0, 0.0, 45.0]), study)
+    joined = " ".join(text)
+    assert "+y side (u 45 to 135 deg) lights the front wall" in joined
+    assert "-x side (u 135 to 225 deg) lights the left wall" in joined
+    assert "2000 grit" in joined and "Anneal" in joined and "witness lines" in joined
+    assert "up to 50 um" in joined and "costs r 0.004 (within it)" in joined
+    assert "radius 12.5 mm" in joined
+    page = guidance.html(text, study)
+    assert page.count("<tr>") == 5 and '<td class="fail">0.050</td>' in page and "20 um (profile)" in page
+    sla = " ".join(guidance.advice(load_fabrication("sla_resin"), ["front"], np.zeros(3),
+                                   {**study, "profile_error_drop": 0.03}))
+    assert "clear coat" in sla and "finish more carefully" in sla and "witness" not in sla

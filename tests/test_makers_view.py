@@ -1,0 +1,207 @@
+"""The maker's view: text and panorama targets, the report in a real browser, the
+summary, the optimization GIF, lens.glb for Blender and a GLB inner layer."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from lampfab import gltf, inner, profile, room, targets
+from lampfab.errors import LampfabError
+
+ROOT = Path(__file__).resolve().parent.parent
+TINY = ROOT / "tests" / "data" / "tiny.toml"
+
+
+def make(*args):
+    return subprocess.run(["make", "--no-print-directory", *args], cwd=ROOT, capture_output=True, text=True)
+
+
+# -- text ---------------------------------------------------------------------------
+def _lit_box(img, level=0.5):
+    rows, cols = np.nonzero(img > level)
+    return rows.min(), rows.max(), cols.min(), cols.max()
+
+
+def test_text_fills_the_wall_inside_its_margin():
+    img = targets.text_image("Happy birthday", 96, 128)
+    assert img.shape == (96, 128) and img.min() >= 0 and img.max() == pytest.approx(1.0)
+    r0, r1, c0, c1 = _lit_box(img)
+    margin = targets.TEXT_MARGIN
+    assert c0 >= margin * 128 - 1 and c1 <= (1 - margin) * 128
+    assert r0 >= margin * 96 - 1 and r1 <= (1 - margin) * 96
+    # Two words on a 4:3 wall: two lines make larger letters than one, so the text is
+    # as wide as the margin allows and tall.
+    assert (c1 - c0) > 0.75 * 128 and (r1 - r0) > 0.4 * 96 and 0.05 < (img > 0.5).mean() < 0.5
+
+
+def test_text_keeps_given_lines_and_refuses_nothing_or_too_much():
+    one = targets.text_image("ab cd", 60, 200)
+    two = targets.text_image("ab\ncd", 60, 200)
+    assert _lit_box(two)[1] - _lit_box(two)[0] > _lit_box(one)[1] - _lit_box(one)[0]
+    for bad in ("", "   \n ", "x" * 500):
+        with pytest.raises(LampfabError, match="TEXT"):
+            targets.text_image(bad, 60, 80)
+
+
+# -- panorama -----------------------------------------------------------------------
+def test_panorama_columns_land_on_the_walls_they_face():
+    """A bright column at the panorama's centre, quarter and three quarters lands in
+    the middle of the front, left and right walls; the middle row at the image centre."""
+    design = profile.load_design("default")
+    light = room.light_position(design)
+    h, w = 200, 800
+    for col, name in ((w // 2, "front"), (w // 4, "left"), (3 * w // 4, "right")):
+        pano = np.zeros((h, w))
+        pano[:, col - 3: col + 3] = 1.0
+        pano[h // 2 - 2: h // 2 + 2, :] = 0.5
+        wall = next(x for x in room.walls(design) if x.name == name)
+        img = targets.panorama_slice(pano, wall, light, design.room.wall_distance_mm,
+                                     design.room.target_center_z_mm, 48, 64)
+        column = img.sum(axis=0)
+        assert abs(np.argmax(column) - 31.5) <= 1 and column.max() > 2 * np.median(column), name
+        assert abs(np.argmax(img[:, 5]) - 23.5) <= 1 and img[:, 5].max() > 0.2, name
+    with pytest.raises(LampfabError, match="360"):
+        targets.check_panorama(np.zeros((100, 150)), "photo.png")
+
+
+# -- end to end ---------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def text_lamp(tmp_path_factory):
+    build = tmp_path_factory.mktemp("text")
+    run = make("lamp", f"BUILD={build}", 'TEXT=Hi there', f"PROFILE={TINY}", "ALLOW_FAIL=1")
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    return build / "text", run
+
+
+@pytest.mark.slow
+def test_text_lamp_end_to_end(text_lamp):
+    out, run = text_lamp
+    prepared = json.loads((out / "prepare.json").read_text())["figures"]
+    assert prepared["front_source"] == "text: Hi there"
+    with Image.open(out / "targets" / "front_preview.png") as im:
+        lit = (np.asarray(im) > 128).mean()
+    assert 0.05 < lit < 0.5  # letters, not a blank or a full wall
+    settings = json.loads((out / "settings.json").read_text())
+    assert settings["text"] == "Hi there"
+    # One summary line per stage with its time, then the total.
+    lines = run.stdout.strip().splitlines()[-9:]
+    for line, stage in zip(lines, ["prepare", "plan", "init", "optimize", "solid", "check", "export", "verify"]):
+        assert re.match(rf"{stage}\s+\d+\.\d s  \S", line), line
+    assert lines[-1].startswith("total") and "report.html" in lines[-1]
+
+
+@pytest.mark.slow
+def test_optimization_gif_and_lens_glb(text_lamp):
+    import trimesh
+
+    from lampfab import stl
+
+    out, _ = text_lamp
+    with Image.open(out / "optimization.gif") as gif:
+        frames = gif.n_frames
+    iterations = profile.load_design(str(TINY)).optimize.iterations
+    assert frames == iterations + 1  # step 0 and each step (tiny previews every step)
+    scene = trimesh.load(out / "lens.glb")
+    mesh = next(iter(scene.geometry.values()))
+    v, f = stl.read_stl(out / "lens.stl")
+    assert len(mesh.faces) == len(f) and mesh.is_watertight
+    # Metres, Y up: the STL's height in z becomes y / 1000.
+    assert mesh.bounds[1][1] == pytest.approx(v[:, 2].max() / 1000, rel=1e-5)
+    assert mesh.bounds[0][1] == pytest.approx(0.0, abs=1e-6)
+    material = mesh.visual.material
+    assert material.metallicFactor == 0 and material.roughnessFactor == 0
+    design = json.loads((out / "design.json").read_text())
+    assert design["lens"]["glb"] == "lens.glb"
+
+
+def _chromium():
+    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    assert exe, "Chromium is missing: stages/00_setup.sh installs it (apt-get install chromium)"
+    return exe
+
+
+_PROBE = """<script>
+window.addEventListener("load", () => {
+  const imgs = Array.from(document.images);
+  const out = document.createElement("pre");
+  out.id = "probe";
+  out.textContent = JSON.stringify(imgs.map(i => [i.alt, i.complete, i.naturalWidth, i.naturalHeight]));
+  document.body.appendChild(out);
+});
+</script>"""
+
+
+@pytest.mark.slow
+def test_report_loads_every_image_in_a_real_browser(text_lamp, tmp_path):
+    """Chromium opens report.html offline; every <img> decodes to its real size."""
+    out, _ = text_lamp
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert "<script" not in html  # the report itself runs nothing; the probe is added to a copy
+    page = tmp_path / "probe.html"
+    page.write_text(html.replace("</body>", _PROBE + "</body>"), encoding="utf-8")
+    run = subprocess.run([_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                          f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000",
+                          "--dump-dom", page.as_uri()], capture_output=True, text=True, timeout=120)
+    found = re.search(r'<pre id="probe">(.*?)</pre>', run.stdout, re.S)
+    assert found, run.stdout[-2000:] + run.stderr[-2000:]
+    seen = json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&"))
+    embedded = re.findall(r'<img src="data:image/(?:png|gif|jpeg);base64,([A-Za-z0-9+/=]+)" alt="([^"]*)"', html)
+    assert len(seen) == len(embedded) == html.count("<img ")
+    walls = json.loads((out / "verify.json").read_text())["figures"]["walls"]
+    assert len(seen) == 3 * len(walls) + 5  # per wall 3; room, lens, heightmap, GIF, checks
+    for (alt, complete, width, height), (data, alt_html) in zip(seen, embedded):
+        with Image.open(io.BytesIO(base64.b64decode(data))) as im:
+            assert complete and (width, height) == im.size, (alt, width, height, im.size)
+    for label in ("The lamp in its room", "The lens", "Radial offset from the plain cylinder",
+                  "The walls during optimization", "Checks on the unrolled lens"):
+        assert label in [s[0] for s in seen]
+
+
+@pytest.mark.slow
+def test_panorama_lamp_end_to_end(tmp_path):
+    run = make("lamp", f"BUILD={tmp_path}", f"PANORAMA={ROOT / 'examples' / 'panorama.png'}", f"PROFILE={TINY}",
+               "ALLOW_FAIL=1")
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    out = tmp_path / "panorama"
+    prepared = json.loads((out / "prepare.json").read_text())
+    assert prepared["inputs"]["panorama"]["path"].endswith("panorama.png")
+    fronts = {}
+    for name in ("front", "left", "right"):
+        with Image.open(out / "targets" / f"{name}_preview.png") as im:
+            fronts[name] = np.asarray(im, np.float64)
+    # Each wall shows its own slice: the moon is only above the front wall.
+    assert not np.allclose(fronts["front"], fronts["left"]) and not np.allclose(fronts["left"], fronts["right"])
+    assert fronts["front"][:40].max() > 200 and fronts["left"][:40].max() < 50
+    assert (out / "report.html").is_file() and (out / "lens.stl").is_file()
+
+
+def test_text_and_panorama_together_is_one_line(tmp_path):
+    run = subprocess.run([sys.executable, "-m", "lampfab.cli", "prepare", "--out", str(tmp_path / "b"),
+                          "--profile", str(TINY), "--text", "Hi", "--panorama",
+                          str(ROOT / "examples" / "panorama.png")], cwd=ROOT, capture_output=True, text=True)
+    assert run.returncode == 2 and run.stderr.count("\n") == 1 and "choose one" in run.stderr
+
+
+# -- Blender round trip ----------------------------------------------------------------
+def test_glb_inner_layer_reads_as_the_same_mesh(tmp_path):
+    """An inner layer exported as GLB (metres, Y up, as Blender writes it) loads in mm, Z up."""
+    design = profile.load_design("default")
+    lens = design.lens
+    args = (room.light_position(design), lens.outer_radius_mm, lens.max_offset_mm, lens.height_mm)
+    v_obj, f_obj = inner.load_inner(None, 1.0, *args)
+    glb = tmp_path / "inner.glb"
+    gltf.write_glb(glb, v_obj, f_obj, 1.5)
+    v_glb, f_glb = inner.load_inner(glb, 1.0, *args)
+    assert v_glb.shape == v_obj.shape and len(f_glb) == len(f_obj)
+    np.testing.assert_allclose(np.sort(v_glb, axis=0), np.sort(v_obj, axis=0), atol=1e-4)

@@ -1,0 +1,386 @@
+"""Nothing lost, nothing cryptic: bad inputs through the real command line, interrupted
+and faulty runs, bit-for-bit reproducibility."""
+
+import dataclasses
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from lampfab import optimize, profile, resources, room, surface
+from lampfab.errors import LampfabError
+
+ROOT = Path(__file__).resolve().parent.parent
+TINY = ROOT / "tests" / "data" / "tiny.toml"
+
+
+def make(*args):
+    return subprocess.run(["make", "--no-print-directory", *args], cwd=ROOT, capture_output=True, text=True)
+
+
+def files_under(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.rglob("*") if p.is_file()) if folder.exists() else []
+
+
+def assert_one_clear_line(run, *words):
+    """Non-zero exit, exactly one ``lampfab:`` line on stderr holding ``words``, no traceback."""
+    assert run.returncode != 0
+    lines = [ln for ln in run.stderr.splitlines() if ln.startswith("lampfab:")]
+    assert len(lines) == 1, run.stderr[-2000:]
+    assert "Traceback" not in run.stderr + run.stdout
+    for word in words:
+        assert word in lines[0], lines[0]
+
+
+# -- the corpus of bad inputs ------------------------------------------------------------
+def _disk(side: int = 32) -> np.ndarray:
+    y, x = np.mgrid[:side, :side]
+    return np.where((x - side / 2) ** 2 + (y - side / 2) ** 2 < (side / 3) ** 2, 255, 0).astype(np.uint8)
+
+
+def _png(path: Path, array: np.ndarray) -> Path:
+    Image.fromarray(array).save(path, format="PNG")
+    return path
+
+
+def _bomb(path: Path, side: int = 12000) -> Path:
+    """A valid 1-bit PNG whose header declares side x side pixels (a few kB on disk)."""
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return len(data).to_bytes(4, "big") + kind + data + zlib.crc32(kind + data).to_bytes(4, "big")
+
+    ihdr = side.to_bytes(4, "big") * 2 + bytes([1, 0, 0, 0, 0])
+    rows = zlib.compress(bytes(side * ((side + 7) // 8 + 1)), 9)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", rows) + chunk(b"IEND", b""))
+    return path
+
+
+def _write(path: Path, data: bytes) -> Path:
+    path.write_bytes(data)
+    return path
+
+
+def _encoded(array: np.ndarray, fmt: str) -> bytes:
+    buffer = io.BytesIO()
+    Image.fromarray(array).save(buffer, format=fmt)
+    return buffer.getvalue()
+
+
+def _noise(path: Path) -> bytes:
+    return _png(path, np.random.default_rng(3).integers(0, 256, (64, 64), np.uint8)).read_bytes()
+
+
+def _truncated(path: Path) -> Path:
+    data = _noise(path)
+    path.write_bytes(data[: len(data) // 2])
+    return path
+
+
+def _corrupt(path: Path) -> Path:
+    data = bytearray(_noise(path))
+    data[len(data) // 2: len(data) // 2 + 16] = bytes(16)
+    path.write_bytes(bytes(data))
+    return path
+
+
+def _inner_stl(path: Path, make_mesh) -> Path:
+    make_mesh().export(path)
+    return path
+
+
+def _tiny_with(path: Path, lens: str = "", room_: str = "", replace: tuple = ()) -> Path:
+    text = TINY.read_text()
+    for old, new in replace:
+        assert old in text
+        text = text.replace(old, new)
+    path.write_text(text.replace("[lens]\n", f"[lens]\n{lens}\n").replace("[room]\n", f"[room]\n{room_}\n"))
+    return path
+
+
+def _open_sphere():
+    import trimesh
+
+    s = trimesh.creation.icosphere(radius=8)
+    return trimesh.Trimesh(s.vertices + [0, 0, 45], s.faces[:-3])
+
+
+def _sphere(radius, centre):
+    import trimesh
+
+    return trimesh.creation.icosphere(radius=radius).apply_translation(centre)
+
+
+IMAGE_CASES = {
+    "missing": (lambda t: t / "no such image.png", ["no such image.png", "not found", "PNG or JPEG"]),
+    "empty": (lambda t: _write(t / "empty.png", b""), ["empty.png", "empty", "PNG or JPEG"]),
+    "truncated": (lambda t: _truncated(t / "cut.png"), ["cut.png", "truncated or corrupt"]),
+    "corrupt": (lambda t: _corrupt(t / "noise.png"), ["noise.png", "truncated or corrupt"]),
+    "text named png": (lambda t: _write(t / "notes.png", b"hello"), ["notes.png", "not an image", "PNG or JPEG"]),
+    "bmp": (lambda t: _write(t / "disk.bmp", _encoded(_disk(), "BMP")), ["disk.bmp", "BMP", "convert it to PNG"]),
+    "decompression bomb": (lambda t: _bomb(t / "bomb.png"), ["bomb.png", "too large", "144 megapixels", "50 megapixels"]),
+    "all black": (lambda t: _png(t / "black.png", np.zeros((20, 30), np.uint8)), ["black.png", "uniform"]),
+    "all white": (lambda t: _png(t / "white.png", np.full((20, 30), 255, np.uint8)), ["white.png", "uniform"]),
+    "constant grey": (lambda t: _png(t / "grey.png", np.full((20, 30, 3), 128, np.uint8)), ["grey.png", "uniform"]),
+    "fully transparent": (lambda t: _png(t / "clear.png", np.dstack([_disk()] * 3 + [np.zeros((32, 32), np.uint8)])),
+                          ["clear.png", "uniform", "transparency over black"]),
+}
+
+
+@pytest.mark.parametrize("case", IMAGE_CASES)
+def test_bad_image_one_line_and_no_files(tmp_path, case):
+    make_target, words = IMAGE_CASES[case]
+    target = make_target(tmp_path)
+    build = tmp_path / "build"
+    run = make("prepare", f"BUILD={build}", "NAME=bad", f"PROFILE={TINY}", f"TARGET={target}")
+    assert_one_clear_line(run, *words)
+    assert files_under(build) == []
+
+
+@pytest.mark.parametrize("variables, words", [
+    (["TEXT=Hi", "PANORAMA=examples/panorama.png"], ["TEXT and PANORAMA both given", "choose one"]),
+    (["NAME=nothing", "TARGET=", "TARGET_FRONT=examples/apple.png"], ["no target image given", "TARGET=", "TEXT="]),
+], ids=["text and panorama", "TARGET emptied, one wall given"])
+def test_contradicting_or_missing_targets_one_line_and_no_files(tmp_path, variables, words):
+    build = tmp_path / "build"
+    run = make("prepare", f"BUILD={build}", f"PROFILE={TINY}", *variables)
+    assert_one_clear_line(run, *words)
+    assert files_under(build) == []
+
+
+PROFILE_CASES = {
+    "unknown key": (dict(lens="outer_radius = 40"), ["[lens] outer_radius", "unknown key", "allowed"]),
+    "wrong type": (dict(replace=(("height_mm = 90.0", "height_mm = 'tall'"),)), ["height_mm", "expected a number"]),
+    "negative size": (dict(replace=(("outer_radius_mm = 45.0", "outer_radius_mm = -45.0"),)),
+                      ["outer_radius_mm", "out of range", "10.0 to 300.0"]),
+    "zero size": (dict(replace=(("height_mm = 90.0", "height_mm = 0"),)), ["height_mm", "out of range"]),
+    "light outside the lens": (dict(replace=(("light_height_mm = 45.0", "light_height_mm = 95.0"),)),
+                               ["light_height_mm", "inside the lens"]),
+    "light outside the cavity": (dict(replace=(("light_height_mm = 45.0", "light_height_mm = 5.0"),)),
+                                 ["inner layer", "does not enclose the light", "light_height_mm"]),
+    "walls behind the lamp": (dict(room_="wall_distance_mm = 100.0", replace=(("outer_radius_mm = 45.0",
+                                                                              "outer_radius_mm = 60.0"),)),
+                              ["wall_distance_mm", "walls behind or inside the lamp"]),
+    "inner layer not closed": (dict(inner=_open_sphere), ["inner layer", "not closed", "open edges"]),
+    "inner layer crosses the outer layer": (dict(inner=lambda: _sphere(30, [0, 0, 45])),
+                                            ["reaches radius", "outer layer may come in"]),
+    "more memory than there is": (dict(replace=(("grid_u = 32", "grid_u = 8192"), ("grid_v = 9", "grid_v = 4096"),
+                                                ("tessellation = 2", "tessellation = 16"))),
+                                  ["needs about", "GB of memory", "grid_u", "tessellation", "is free"]),
+}
+
+
+@pytest.mark.parametrize("case", PROFILE_CASES)
+def test_bad_profile_one_line_and_no_files(tmp_path, case):
+    spec, words = PROFILE_CASES[case]
+    lens = spec.get("lens", "")
+    if "inner" in spec:
+        lens = f"inner_mesh = '{_inner_stl(tmp_path / 'inner.stl', spec['inner'])}'"
+    bad = _tiny_with(tmp_path / "bad profile é.toml", lens, spec.get("room_", ""), spec.get("replace", ()))
+    build = tmp_path / "build"
+    run = make("prepare", f"BUILD={build}", "NAME=bad", f"PROFILE={bad}",
+               f"TARGET={_png(tmp_path / 'disk.png', _disk())}")
+    assert_one_clear_line(run, *words)
+    assert files_under(build) == []
+
+
+def test_bad_fabrication_profile(tmp_path):
+    fab = tmp_path / "my printer.toml"
+    fab.write_text((ROOT / "profiles" / "fab" / "sla_resin.toml").read_text() + "\nnozzle_mm = 0.4\n")
+    build = tmp_path / "build"
+    run = make("prepare", f"BUILD={build}", f"PROFILE={TINY}", f"FAB={fab}",
+               f"TARGET={_png(tmp_path / 'disk.png', _disk())}")
+    assert_one_clear_line(run, str(fab), "nozzle_mm", "unknown key")
+    assert files_under(build) == []
+
+
+def test_unicode_spaces_16bit_and_palette_targets_are_accepted(tmp_path):
+    """The alpha, 16-bit and palette rules of lampfab.image, through make with awkward paths."""
+    folder = tmp_path / "my pictures ü"
+    folder.mkdir()
+    main = _png(folder / "zoë's lamp.png", _disk())
+    deep = _png(folder / "sixteen bit.png", _disk().astype(np.uint16) * 257)
+    palette = folder / "palette.png"
+    Image.fromarray(_disk()).convert("P").save(palette)
+    build = tmp_path / "build"
+    run = make("prepare", f"BUILD={build}", f"PROFILE={TINY}", f"TARGET={main}", f"TARGET_LEFT={deep}",
+               f"TARGET_RIGHT={palette}")
+    assert run.returncode == 0, run.stderr[-2000:]
+    out = build / "zoë's_lamp"
+    report = json.loads((out / "prepare.json").read_text())
+    assert report["figures"]["front_source"] == str(main) and report["figures"]["left_source"] == str(deep)
+    assert report["inputs"]["image_right"]["sha256"] and report["seed"] == 0
+    for wall in ("front", "left", "right"):
+        assert 0.05 < report["figures"][f"{wall}_mean_luminance"] < 0.5
+        assert (out / "targets" / f"{wall}.png").is_file()
+
+
+def test_memory_check_names_the_keys(monkeypatch):
+    design = profile.load_design(str(TINY))
+    monkeypatch.setattr(resources, "available_bytes", lambda: 1e6)
+    with pytest.raises(LampfabError, match=r"optimize: needs about .* GB of memory \(20,000 photons from "
+                                           r"\[optimize\] splat_photons and 1,088 surface vertices"):
+        resources.check_memory("optimize", design)
+    monkeypatch.setattr(resources, "available_bytes", lambda: 64e9)
+    resources.check_memory("optimize", design)
+
+
+def test_available_memory_is_read():
+    free = resources.available_bytes()
+    assert free is None or 1e7 < free < 1e14
+
+
+# -- numerical faults --------------------------------------------------------------------
+class Quadratic(optimize.Optimizer):
+    """Pulls every node to 1 mm; ``faults`` maps a call number to the loss it returns."""
+
+    def __init__(self, design, faults, **changes):
+        opt = dataclasses.replace(design.optimize, levels=1, step="gd", learning_rate=0.1, **changes)
+        super().__init__(surface.Cylinder(45.0, 90.0), None, None, None, 1.49, room.walls(design), [], opt, 20.0, 45.0)
+        self.faults, self.calls = faults, 0
+
+    def gradient(self, heights, views, seed):
+        self.calls += 1
+        r = heights - 1.0
+        if self.calls in self.faults:
+            return self.faults[self.calls], 2 * r
+        return float(np.sum(r**2)), 2 * r
+
+
+def _run(opt, state=None):
+    grid = (opt.opt.grid_u, opt.opt.grid_v)
+    messages, checkpoints = [], []
+    state = opt.run(state or optimize.State(np.zeros(grid), 0, 0), lambda s: checkpoints.append(s.step),
+                    lambda s: None, lambda s, loss, m: m and messages.append(m))
+    return state, messages, checkpoints
+
+
+@pytest.mark.parametrize("bad_loss, words", [(float("nan"), "the loss is nan"), (float("inf"), "the loss is inf"),
+                                              (1e9, "the loss exploded")])
+def test_a_fault_falls_back_to_the_last_checkpoint_with_a_smaller_step(tiny_design, bad_loss, words):
+    clean, _, _ = _run(Quadratic(tiny_design, {}, iterations=8, checkpoint_every=3))
+    faulty, messages, checkpoints = _run(Quadratic(tiny_design, {5: bad_loss}, iterations=8, checkpoint_every=3))
+    assert len(messages) == 1 and messages[0].startswith(f"step 4: {words}")
+    assert "back to the last good checkpoint (step 3) with the learning rate x0.5" in messages[0]
+    assert faulty.step == 8 and faulty.lr_scale == 0.5 and faulty.faults == [(4, 0.5)]
+    assert [row[0] for row in faulty.log] == list(range(8))  # steps 3.. redone, none lost
+    assert np.all(np.isfinite(faulty.heights))
+    assert np.abs(faulty.heights - 1).max() > np.abs(clean.heights - 1).max()  # the smaller step shows
+    assert checkpoints == [3, 6]
+
+
+def test_a_nan_gradient_is_a_fault_too(tiny_design):
+    opt = Quadratic(tiny_design, {}, iterations=4, checkpoint_every=2)
+    real = opt.gradient
+    opt.gradient = lambda h, v, seed: (real(h, v, seed)[0], np.full_like(h, np.nan)) if opt.calls == 2 else real(h, v, seed)
+    state, messages, _ = _run(opt)
+    assert len(messages) == 1 and messages[0].startswith("step 2: the gradient has") and "NaN or Inf" in messages[0]
+    assert state.step == 4 and np.all(np.isfinite(state.heights))
+
+
+def test_a_fault_that_stays_stops_with_a_message(tiny_design):
+    always = {k: float("nan") for k in range(3, 100)}
+    with pytest.raises(optimize.NumericalFault, match=r"step 2: the loss is nan, even after halving the learning "
+                                                      r"rate 10 times from the checkpoint at step 2"):
+        _run(Quadratic(tiny_design, always, iterations=6, checkpoint_every=2))
+
+
+def test_nan_in_the_first_lens_is_refused(tmp_path):
+    heights = np.zeros((32, 9))
+    heights[3, 4] = np.nan
+    np.savez(tmp_path / "init.npz", heights=heights)
+    run = subprocess.run([sys.executable, "-m", "lampfab.cli", "optimize", "--out", str(tmp_path), "--profile",
+                          str(TINY)], cwd=ROOT, capture_output=True, text=True)
+    assert_one_clear_line(run, "init.npz", "1 heights are NaN or Inf", "re-run init")
+    assert files_under(tmp_path) == [tmp_path / "init.npz"]
+
+
+# -- reproducibility ------------------------------------------------------------------------
+def test_splat_gradient_is_bit_reproducible(mi, tiny_design, inner_layer):
+    from lampfab import splat
+
+    walls = room.walls(tiny_design)
+    targets = [np.random.default_rng(7).random(room.image_shape(w, 16)) for w in walls]
+    h = np.random.default_rng(3).normal(scale=0.5, size=(tiny_design.optimize.grid_u, tiny_design.optimize.grid_v))
+    results = []
+    for _ in range(2):
+        opt = splat.SplatOptimizer(surface.Cylinder(45.0, 90.0), *inner_layer, room.light_position(tiny_design), 1.49,
+                                   walls, targets, dataclasses.replace(tiny_design.optimize, splat_photons=100_000),
+                                   20.0, 45.0)
+        results.append(opt.gradient(h, [0, 1, 2], seed=11))
+    assert results[0][0] == results[1][0] and np.abs(results[0][1]).max() > 0
+    assert results[0][1].tobytes() == results[1][1].tobytes()
+
+
+def _checkpoint_step(out: Path) -> int:
+    """The step of ``out``'s optimize checkpoint, 0 if none."""
+    if not (out / "checkpoint.npz").exists():
+        return 0
+    with np.load(out / "checkpoint.npz") as saved:
+        return int(saved["step"])
+
+
+@pytest.mark.slow
+def test_interrupted_runs_resume_to_the_same_bytes_as_an_uninterrupted_one(tmp_path):
+    """Two builds from scratch with one seed; the second is stopped by SIGTERM, then
+    killed with SIGKILL, and each time resumed.  Every artifact matches bit for bit."""
+    prof = _tiny_with(tmp_path / "resume.toml", replace=(("iterations = 2", "iterations = 24"),
+                                                         ("preview_every = 1", "preview_every = 1000")))
+    outs = []
+    for name in ("straight", "stopped"):
+        run = make("init", f"BUILD={tmp_path / name}", "NAME=apple", f"PROFILE={prof}")
+        assert run.returncode == 0, run.stderr[-2000:]
+        outs.append(tmp_path / name / "apple")
+    straight, stopped = outs
+    assert (straight / "init.npz").read_bytes() == (stopped / "init.npz").read_bytes()
+    optimize_cmd = [sys.executable, "stages/30_optimize.py", "--profile", str(prof), "--out"]
+    run = subprocess.run([*optimize_cmd, str(straight)], cwd=ROOT, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-2000:]
+
+    step = 0
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        before = step
+        proc = subprocess.Popen([*optimize_cmd, str(stopped)], cwd=ROOT, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        while _checkpoint_step(stopped) <= before:  # a checkpoint newer than the last one
+            assert proc.poll() is None, proc.communicate()[1][-2000:]
+            time.sleep(0.05)
+        os.kill(proc.pid, sig)
+        stdout, stderr = proc.communicate()
+        if sig == signal.SIGTERM:
+            assert proc.returncode == 2
+            lines = [ln for ln in stderr.splitlines() if ln.startswith("lampfab:")]
+            assert len(lines) == 1 and "interrupted at step" in lines[0] and "run the same command again" in lines[0]
+        else:
+            assert proc.returncode == -signal.SIGKILL
+        step = _checkpoint_step(stopped)
+        assert before < step < 24
+        assert not (stopped / "optimize.json").exists() and not (stopped / "heightmap.npz").exists()
+    again = subprocess.run([*optimize_cmd, str(stopped)], cwd=ROOT, capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert f"resuming from {stopped / 'checkpoint.npz'} at step {step}" in again.stdout
+    assert (straight / "heightmap.npz").read_bytes() == (stopped / "heightmap.npz").read_bytes()
+    assert not (stopped / "checkpoint.npz").exists() and not list(stopped.glob(".*"))
+
+    report = json.loads((stopped / "optimize.json").read_text())
+    assert report["figures"]["resumed"] and report["figures"]["steps"] == 24 and report["seed"] == 0
+    assert {"init", "target_front", "design_profile", "fabrication_profile", "inner_layer"} <= set(report["inputs"])
+    assert report["versions"]["drjit"] and report["settings"]["design"]["optimize"]["seed"] == 0
+
+    from lampfab import stl
+
+    for out in outs:
+        run = subprocess.run([sys.executable, "stages/40_solid.py", "--profile", str(prof), "--out", str(out)],
+                             cwd=ROOT, capture_output=True, text=True)
+        assert run.returncode == 0, run.stderr[-2000:]
+        solid = np.load(out / "solid.npz")
+        stl.write_stl(out / "lens.stl", solid["vertices"], solid["faces"])
+    assert (straight / "solid.npz").read_bytes() == (stopped / "solid.npz").read_bytes()
+    assert (straight / "lens.stl").read_bytes() == (stopped / "lens.stl").read_bytes()
