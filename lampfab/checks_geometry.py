@@ -59,7 +59,7 @@ def compute_fields(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: n
     nu, nv = heights.shape
     mu, mv = max(samples[0], 2 * nu), max(samples[1], 2 * nv)
     H = cyl.height_mm
-    pu = [surface.periodic_matrix(nu, mu, d) for d in range(3)]
+    pu = [surface.u_matrix(nu, mu, d, cyl.creased) for d in range(3)]
     pz = [surface.open_matrix(nv, mv, d) / H**d for d in range(3)]
     # Radius and its derivatives from the spline itself (exact, no finite differences):
     # curvature needs second derivatives, which differencing would make noisy.

@@ -19,8 +19,10 @@ from pathlib import Path
 STAGE_HELP = {
     "prepare": "read the image(s) and write one linear target per wall (targets/)",
     "plan": "render the plain lens in the room: where its light falls (plan.json, plan/)",
-    "init": "transport-based first lens in seconds (init.npz)",
-    "optimize": "refine with Mitsuba ptracer gradients, the source's method (heightmap.npz)",
+    "init": "transport-based first lens: each photon's goal by optimal transport, then the surface "
+            "that lands it there (init.npz)",
+    "optimize": "refine by differentiable photon splatting (Mitsuba + Dr.Jit), or the source's ptracer "
+                "method with [optimize] method = \"seed\" (heightmap.npz)",
     "solid": "merge outer shell, inner layer and LED bore into one solid (solid.npz)",
     "check": "manufacturability against the fabrication profile (checks.json, checks.png)",
     "export": "lens.stl, lens.step and design.json, each read back and checked",

@@ -200,10 +200,10 @@ class Optimizer:
                 penalty, penalty_grad = surface.slope_penalty(self.cyl, state.heights,
                                                               self.max_tilt - PENALTY_MARGIN_DEG)
                 loss += opt.slope_weight * penalty
-                grad = surface.sample_adjoint(grad_full + opt.slope_weight * penalty_grad, *grid)
+                grad = surface.sample_adjoint(self.cyl, grad_full + opt.slope_weight * penalty_grad, *grid)
                 fault = _fault(loss, grad, best.get(key, math.inf))
                 if fault is None:  # on a fault the state is replaced, moments included
-                    heights = self.makeable(state.heights + surface.sample(self.step_delta(state, grad), *grids[-1]),
+                    heights = self.makeable(state.heights + surface.sample(self.cyl, self.step_delta(state, grad), *grids[-1]),
                                             STEP_SLACK_DEG)
                     fault = None if np.all(np.isfinite(heights)) else "the new heights are not finite"
                 if fault is not None:
@@ -322,4 +322,4 @@ class SeedOptimizer(Optimizer):
         mu, mv = self.fine
         g = grad_vertices.reshape(-1, 3)[: mu * mv]
         g_fine = np.einsum("ij,ij->i", g, self.radial).reshape(mu, mv)
-        return total, surface.sample_adjoint(g_fine, *heights.shape)
+        return total, surface.sample_adjoint(self.cyl, g_fine, *heights.shape)

@@ -78,7 +78,7 @@ def heightmap_map(cyl: Cylinder, heights: np.ndarray, wall_names: list[str], out
 
     width = MAP_WIDTH_PX
     rows = max(2, int(round(width * cyl.height_mm / (2 * np.pi * cyl.radius_mm))))  # true proportions
-    fine = sample(np.asarray(heights, np.float64), width, rows)        # (u, z) mm
+    fine = sample(cyl, np.asarray(heights, np.float64), width, rows)   # (u, z) mm
     shift = int(round(width * SECTOR_WIDTH_DEG / 2 / 360))               # start at u = -45°: whole sectors
     fine = np.roll(fine, shift, axis=0)
     span = max(float(np.abs(fine).max()), 1e-6)

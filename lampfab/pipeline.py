@@ -37,7 +37,8 @@ class Build:
 
     @property
     def cylinder(self) -> surface.Cylinder:
-        return surface.Cylinder(self.design.lens.outer_radius_mm, self.design.lens.height_mm)
+        return surface.Cylinder(self.design.lens.outer_radius_mm, self.design.lens.height_mm,
+                                self.fab.sector_creases)
 
     @property
     def light(self) -> np.ndarray:
@@ -303,7 +304,7 @@ def init(build: Build) -> dict:
     else:
         iv, if_ = build.inner()
         heights, figs = transport.design(
-            build.cylinder, build.walls, build.targets(min(64, opt.grid_v)), iv, if_, build.light,
+            build.cylinder, build.walls, build.targets(opt.sensor_px), iv, if_, build.light,
             build.fab.ior, grid, opt.tessellation, opt.transport_rounds, opt.transport_photons,
             opt.smoothness, d.lens.max_offset_mm, build.fab.max_slope_deg, opt.seed,
             corrections=opt.transport_corrections, dump_share=opt.dump_share, log=_log)

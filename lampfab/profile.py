@@ -77,11 +77,12 @@ class Optimize:
     spp: int = _spec(16, 1, 65536, doc="ptracer samples per pixel per step (seed)")
     splat_photons: int = _spec(1_000_000, 1000, 100_000_000, doc="photons per step (splat)")
     tessellation: int = _spec(4, 1, 16, doc="mesh vertices per heightmap cell edge (the STL uses the same)")
-    transport_rounds: int = _spec(4, 1, 20, doc="position/normal rounds of the transport init")
-    transport_photons: int = _spec(2_000_000, 10_000, 100_000_000, doc="photons for the source density")
-    transport_corrections: int = _spec(3, 0, 20, doc="trace-and-re-aim passes after the first transport")
-    dump_share: float = _spec(0.2, 0.0, 0.9, doc="light the transport may send just past the image's edges")
-    smoothness: float = _spec(1e-3, 0.0, 10.0, doc="curvature penalty in the normal integration")
+    transport_rounds: int = _spec(4, 1, 20, doc="fitting steps per transport pass (a panel: position/normal rounds)")
+    transport_photons: int = _spec(500_000, 10_000, 100_000_000, doc="photons the transport design traces")
+    transport_corrections: int = _spec(3, 0, 20, doc="trace-and-refit passes after the first transport")
+    dump_share: float = _spec(0.1, 0.0, 0.9, doc="light the transport sends above and below the image "
+                                                 "(the lens's top and bottom need the steepest slopes)")
+    smoothness: float = _spec(1e-2, 0.0, 10.0, doc="curvature penalty of the transport's surface fit")
     slope_weight: float = _spec(200.0, 0.0, 1e6, doc="weight of the slope-limit penalty in the loss")
     preview_every: int = _spec(50, 1, 1_000_000, doc="preview images every N steps")
     checkpoint_every: int = _spec(20, 1, 1_000_000, doc="checkpoint every N steps")
@@ -132,6 +133,8 @@ class Fabrication:
     build_y_mm: float = _spec(145.0, 1.0, 5000.0, doc="build volume y")
     build_z_mm: float = _spec(185.0, 1.0, 5000.0, doc="build volume z")
     mount_radius_mm: float = _spec(6.0, 0.5, 100.0, doc="LED bore radius through the base")
+    sector_creases: bool = _spec(False, doc="the outer surface may bend sharply where two walls' sectors meet "
+                                           "(a printer makes such an edge, a ball-end tool cannot cut it)")
     led_radius_mm: float = _spec(2.5, 0.0, 50.0, doc="emitting radius of the LED (blur in verify)")
     surface_error_mm: float = _spec(0.01, 0.0, 5.0, doc="surface error after finishing")
     path: str = ""
@@ -259,10 +262,11 @@ def _check_design(d: Design, path: Path) -> None:
     if opt.loss == "l1_weighted" and len(opt.loss_weights) != len(room.walls):
         raise LampfabError(f"{path}: [optimize] loss_weights needs one weight per wall ({len(room.walls)})")
     coarse = 4 ** (opt.levels - 1)
-    if opt.grid_u % coarse:
-        raise LampfabError(f"{path}: [optimize] grid_u must be divisible by 4^(levels-1) = {coarse}")
-    if opt.grid_u // coarse < 8 or opt.grid_v // coarse < 4:
-        raise LampfabError(f"{path}: [optimize] the coarsest level would be below 8 x 4 nodes; lower levels")
+    if opt.grid_u % (8 * coarse):
+        raise LampfabError(f"{path}: [optimize] grid_u must be divisible by 8 x 4^(levels-1) = {8 * coarse} "
+                           f"(the sector boundaries fall on nodes at every level)")
+    if opt.grid_u // coarse < 16 or opt.grid_v // coarse < 4:
+        raise LampfabError(f"{path}: [optimize] the coarsest level would be below 16 x 4 nodes; lower levels")
 
 
 def _check_panel(d: Design, data: dict, path: Path) -> None:

@@ -187,7 +187,7 @@ class SplatOptimizer(Optimizer):
                                                    minlength=self.n_vertices)
         mu, mv = self.fine
         g_fine = np.einsum("ij,ij->i", grad_vertices[: mu * mv], self.radial).reshape(mu, mv)
-        return total, surface.sample_adjoint(g_fine, *heights.shape)
+        return total, surface.sample_adjoint(self.cyl, g_fine, *heights.shape)
 
 
 def _jit_float(mi, values: np.ndarray):

@@ -4,9 +4,11 @@ The outer surface is ONE periodic-in-u, degree-3 ``Geom_BSplineSurface`` that
 interpolates the heightmap surface (``surface.py``) at ``samples_u x samples_v``
 points.  Its poles are computed here: an interpolating not-a-knot cubic spline in v
 (parameter v = z in mm; with ``samples_v == nv`` this reproduces surface.py's z spline
-exactly), then a circulant solve for the periodic uniform cubic in u (parameter u =
-angle in rad).  OCCT's ``GeomAPI_PointsToBSplineSurface`` is not used: its periodic
-interpolation is wrong between samples near the seam (shared fabrication facts).
+exactly), then in u (parameter u = angle in rad) the same basis the heightmap uses: the
+uniform periodic cubic (a circulant solve), or for a creased lens one not-a-knot cubic
+per sector, joined by knots of multiplicity 3 (C0) at the sector seams.  OCCT's
+``GeomAPI_PointsToBSplineSurface`` is not used: its periodic interpolation is wrong
+between samples near the seam (shared fabrication facts).
 
 The solid is assembled from faces that share their edges, with no OCCT boolean and no
 sewing: the outer face, the top cap and the bottom cap (bounded by the outer face's own
@@ -52,30 +54,46 @@ def bspline_poles(cyl: surface.Cylinder, heights: np.ndarray, samples_u: int,
                   samples_v: int) -> dict:
     """Poles and knots of the degree-3 B-spline through the surface samples (pure numpy).
 
-    Samples: ``surface.points(cyl, surface.sample(heights, samples_u, samples_v))``,
+    Samples: ``surface.points(cyl, surface.sample(cyl, heights, samples_u, samples_v))``,
     (samples_u, samples_v, 3) mm at u = 2*pi*k/samples_u, z = H*j/(samples_v - 1).
-    Returns dict(poles (samples_u, samples_v, 3) float64 mm, u_knots (samples_u + 1,)
-    rad with multiplicity 1 (periodic), v_knots (k,) mm and v_mults (k,) int (clamped),
-    samples (samples_u, samples_v, 3) mm).
+    In u the spline is periodic: the uniform cubic (smooth surface), or (creased) one
+    not-a-knot cubic per sector with knots of multiplicity 3 at the seams, where it is
+    C0, starting at the first seam.  Returns dict(poles (samples_u, samples_v, 3) float64
+    mm, u_knots (k,) rad and u_mults (k,) int (periodic), v_knots (k,) mm and v_mults (k,)
+    int (clamped), samples (samples_u, samples_v, 3) mm).
     """
     from scipy.interpolate import make_interp_spline
 
     mu, mv = int(samples_u), int(samples_v)
-    if mu < 8 or mv < 4:
-        raise LampfabError(f"STEP samples {mu} x {mv}: need at least 8 around and 4 up")
-    pts = surface.points(cyl, surface.sample(heights, mu, mv))
+    if mu < 8 or mv < 4 or (cyl.creased and mu % 8):
+        raise LampfabError(f"STEP samples {mu} x {mv}: need at least 8 around (a multiple of 8 for a creased "
+                           f"surface) and 4 up")
+    pts = surface.points(cyl, surface.sample(cyl, heights, mu, mv))
     z = cyl.node_z(mv)
     # v: not-a-knot cubic through the rows; its coefficients are clamped B-spline poles.
     spl = make_interp_spline(z, pts.transpose(1, 0, 2).reshape(mv, -1), k=3)
     rows = spl.c.reshape(mv, mu, 3).transpose(1, 0, 2)
     v_knots, v_mults = np.unique(spl.t, return_counts=True)
-    # u: uniform periodic cubic.  OCCT's periodic basis gives the value at knot k as
-    # (P[k] + 4 P[k+1] + P[k+2]) / 6: a circulant system, solved with the FFT.
-    eig = (4.0 + 2.0 * np.cos(2 * np.pi * np.arange(mu) / mu)) / 6.0
-    shifted = np.fft.ifft(np.fft.fft(rows, axis=0) / eig[:, None, None], axis=0).real
-    poles = np.roll(shifted, 1, axis=0)
-    return {"poles": poles, "u_knots": np.arange(mu + 1) * (2 * np.pi / mu),
-            "v_knots": v_knots, "v_mults": v_mults.astype(np.int64), "samples": pts}
+    # u: the same B-spline basis the heightmap uses, on the samples as nodes.  OCCT's
+    # periodic poles start at the first knot: 0 (smooth) or the first seam (creased).
+    basis = surface.u_basis(mu, cyl.creased)
+    coef = np.einsum("ij,jvk->ivk", basis.coef_from_nodes, rows)
+    if cyl.creased:
+        first = basis.first_node(0)
+        poles = np.roll(coef, -first, axis=0)
+        inner = basis.local.t[4:-4]                      # one sector's interior knots on [0, 1]
+        quarter = np.pi / 2
+        u_knots = [np.radians(surface.SEAMS_DEG[0]) + quarter * np.concatenate([[s], s + inner]) for s in range(4)]
+        u_knots = np.append(np.concatenate(u_knots), np.radians(surface.SEAMS_DEG[0]) + 2 * np.pi)
+        u_mults = np.ones(len(u_knots), np.int64)
+        u_mults[np.isin(np.arange(len(u_knots)), np.arange(0, len(u_knots), len(inner) + 1))] = 3
+    else:
+        # OCCT's uniform periodic basis gives the value at knot k as (P[k] + 4 P[k+1] + P[k+2]) / 6.
+        poles = np.roll(coef, 1, axis=0)
+        u_knots = np.arange(mu + 1) * (2 * np.pi / mu)
+        u_mults = np.ones(mu + 1, np.int64)
+    return {"poles": poles, "u_knots": u_knots, "u_mults": u_mults, "v_knots": v_knots,
+            "v_mults": v_mults.astype(np.int64), "samples": pts}
 
 
 def _occ_surface(fit: dict):
@@ -104,38 +122,8 @@ def _occ_surface(fit: dict):
             out.SetValue(k + 1, int(x))
         return out
 
-    u_knots = fit["u_knots"]
-    return Geom_BSplineSurface(arr, reals(u_knots), reals(fit["v_knots"]), ints(np.ones(len(u_knots))),
+    return Geom_BSplineSurface(arr, reals(fit["u_knots"]), reals(fit["v_knots"]), ints(fit["u_mults"]),
                                ints(fit["v_mults"]), 3, 3, True, False)
-
-
-def spline_at(cyl: surface.Cylinder, heights: np.ndarray, u: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """surface.py's spline s(u, z) at arbitrary points: (N,) rad, (N,) mm -> (N,) mm.
-
-    The same spline as ``surface.sample`` (the unique C2 periodic cubic through the
-    uniform u nodes, the not-a-knot cubic through the z nodes), evaluated pointwise.  In
-    u it is built from uniform cubic B-spline coefficients by an FFT solve: scipy's
-    periodic ``make_interp_spline`` takes ~4 ms per column.
-    """
-    from scipy.interpolate import make_interp_spline
-
-    h = np.asarray(heights, np.float64)
-    nu, nv = h.shape
-    eig = (4.0 + 2.0 * np.cos(2 * np.pi * np.arange(nu) / nu)) / 6.0
-    coef = np.fft.ifft(np.fft.fft(h, axis=0) / eig[:, None], axis=0).real
-    in_z = make_interp_spline(np.linspace(0.0, 1.0, nv), np.eye(nv), k=3 if nv >= 4 else nv - 1)
-    t = np.mod(np.asarray(u, np.float64), 2 * np.pi) * (nu / (2 * np.pi))
-    base = np.floor(t).astype(np.int64)
-    f = (t - base)[:, None]
-    weights = ((1 - f) ** 3 / 6, (3 * f ** 3 - 6 * f ** 2 + 4) / 6, (-3 * f ** 3 + 3 * f ** 2 + 3 * f + 1) / 6,
-               f ** 3 / 6)
-    zt = np.asarray(z, np.float64) / cyl.height_mm
-    out = np.empty(len(t))
-    for start in range(0, len(t), 65536):
-        sl = slice(start, start + 65536)
-        in_u = sum(w[sl] * coef[(base[sl] + k - 1) % nu] for k, w in enumerate(weights))
-        out[sl] = np.einsum("ij,ij->i", in_u, in_z(zt[sl]))
-    return out
 
 
 def deviation(cyl: surface.Cylinder, heights: np.ndarray, occ_surface, samples_u: int,
@@ -162,14 +150,14 @@ def deviation(cyl: surface.Cylinder, heights: np.ndarray, occ_surface, samples_u
             occ_surface.D0(float(ui), float(zj), p)
             row[j] = (p.X(), p.Y(), p.Z())
     uu, zz = np.meshgrid(u, z, indexing="ij")
-    r_true = cyl.radius_mm + spline_at(cyl, heights, uu.ravel(), zz.ravel()).reshape(uu.shape)
+    r_true = cyl.radius_mm + surface.evaluate(cyl, heights, uu.ravel(), zz.ravel()).reshape(uu.shape)
     true = np.stack([r_true * np.cos(uu), r_true * np.sin(uu), zz], axis=-1)
     at_sample = np.zeros(out.shape[:2], bool)
     at_sample[::2, ::2] = True
     err = np.linalg.norm(out - true, axis=-1)
     between = out[~at_sample]
     phi = np.arctan2(between[:, 1], between[:, 0])
-    radial = np.hypot(between[:, 0], between[:, 1]) - (cyl.radius_mm + spline_at(cyl, heights, phi, between[:, 2]))
+    radial = np.hypot(between[:, 0], between[:, 1]) - (cyl.radius_mm + surface.evaluate(cyl, heights, phi, between[:, 2]))
     k = int(np.argmax(np.abs(radial)))
     return {"interpolation_mm": float(err[at_sample].max()), "radial_mm": float(np.abs(radial).max()),
             "radial_at_mm": np.round(between[k], 3).tolist(), "parametric_mm": float(err[~at_sample].max())}
@@ -312,7 +300,8 @@ def build_step_solid(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
     t_fit = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    outer = BRepBuilderAPI_MakeFace(occ, 0.0, 2 * np.pi, 0.0, height, OCC_TOLERANCE_MM)
+    u_first, u_last = float(fit["u_knots"][0]), float(fit["u_knots"][-1])
+    outer = BRepBuilderAPI_MakeFace(occ, u_first, u_last, 0.0, height, OCC_TOLERANCE_MM)
     if not outer.IsDone():
         raise GeometryError(f"STEP: outer B-spline face failed ({outer.Error()})")
     outer = outer.Face()
@@ -466,7 +455,8 @@ def write_step(path, cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
     cyl: plain cylinder (mm); heights: (nu, nv) float mm node offsets; inner_vertices
     (n, 3) float mm, inner_faces (m, 3) int: the closed inner layer with outward winding;
     mount_radius_mm: the bore radius (the bore is planned as in ``solid.plan_bore``);
-    samples_u x samples_v: interpolation samples of the B-spline (its pole counts).
+    samples_u x samples_v: the most interpolation samples the B-spline may have (its pole
+    counts); it gets the fewest that keep it within ``tolerances.BSPLINE_DEVIATION_MM``.
     If ``expected_volume_mm3`` (e.g. the STL solid's) is given, the STEP solid's volume
     must match it within ``tolerances.VOLUME_REL``.
 
@@ -477,6 +467,7 @@ def write_step(path, cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
     """
     from . import tolerances
 
+    samples_u, samples_v = fit_samples(cyl, heights, samples_u, samples_v)
     solid, info = build_step_solid(cyl, heights, inner_vertices, inner_faces, mount_radius_mm,
                                    samples_u, samples_v)
     t0 = time.perf_counter()
@@ -494,6 +485,27 @@ def write_step(path, cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
     info["deviation_mm"] = info["deviation"]["radial_mm"]
     info["file_bytes"] = Path(path).stat().st_size
     return info
+
+
+def fit_samples(cyl: surface.Cylinder, heights: np.ndarray, max_u: int, max_v: int) -> tuple[int, int]:
+    """The coarsest interpolation grid, from the heightmap's own nodes doubling up to
+    (max_u, max_v), whose B-spline stays within ``tolerances.BSPLINE_DEVIATION_MM`` of the
+    heightmap surface between its samples: a CAM program handles fewer poles faster.
+    Raises GeometryError if even the finest allowed grid does not."""
+    from .tolerances import BSPLINE_DEVIATION_MM
+
+    nu, nv = heights.shape
+    mu, mv = nu, nv
+    while True:
+        mu_, mv_ = min(mu, max_u), min(mv, max_v)
+        radial = deviation(cyl, heights, _occ_surface(bspline_poles(cyl, heights, mu_, mv_)), mu_, mv_)["radial_mm"]
+        if radial <= BSPLINE_DEVIATION_MM:
+            return mu_, mv_
+        if (mu_, mv_) == (max_u, max_v) or (mu >= max_u and mv >= max_v):
+            raise GeometryError(f"STEP: the B-spline through {mu_} x {mv_} samples deviates {radial * 1000:.2f} µm "
+                                f"from the heightmap surface (limit {BSPLINE_DEVIATION_MM * 1000:g} µm); raise "
+                                f"[export] step_samples_u / step_samples_v")
+        mu, mv = 2 * mu, 2 * (mv - 1) + 1
 
 
 def write_shape(path, solid) -> float:

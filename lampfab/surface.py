@@ -2,14 +2,24 @@
 
 The heightmap ``h`` holds radial offsets in mm at the nodes of a (u, v) grid:
 ``u_i = 2*pi*i/nu`` (periodic) and ``z_j = height*j/(nv-1)`` (both ends included).
-The surface is the bicubic spline through those nodes (periodic cubic in u,
-not-a-knot cubic in z):
+The surface is the cubic spline through those nodes in each direction (not-a-knot in
+z); in u it is one of two kinds, set by the fabrication profile (``Cylinder.creased``):
+
+* smooth: the C2 periodic cubic through all u nodes (a milling tool cannot cut a sharp
+  concave edge);
+* creased: one not-a-knot cubic per 90° sector, joined with C0 continuity at the sector
+  boundaries u = 45° + k·90° (``SEAMS_DEG``).  Each sector projects onto its own wall,
+  so the light's direction jumps at a boundary: a crease lets it jump, where a smooth
+  surface sweeps it across the walls' dark margins.  A printer makes a crease as easily
+  as anything else.
 
     X(u, z) = (R + s(u, z)) * (cos u, sin u, 0) + (0, 0, z)
 
 Every consumer uses this one surface: the optimizer traces its tessellation with true
 facet normals, the STL is a tessellation of it, the STEP interpolates it.  Sampling
 is a linear operator ``A_u @ h @ A_v.T``, so gradients pull back with the transposes.
+Both kinds are B-splines with one coefficient per node (``UBasis``, ``VBasis``): local
+bases for the ray-mapping solver, node interpolation for everything else.
 """
 
 from __future__ import annotations
@@ -18,58 +28,18 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+import scipy.sparse as sp
 
-
-@lru_cache(maxsize=32)
-def periodic_matrix(n: int, m: int, d: int = 0) -> np.ndarray:
-    """(m, n) float64: values at n periodic nodes -> d-th derivative (per radian^d) of
-    the periodic cubic spline through them, at m samples.
-
-    Nodes at 2*pi*i/n, samples at 2*pi*k/m.  Uniform cubic B-spline: the control
-    points solve the circulant system (c[i-1] + 4 c[i] + c[i+1]) / 6 = y[i] (by FFT),
-    then each sample mixes four control points with the B-spline weights (or their
-    derivatives).
-    """
-    step = 2 * np.pi / n
-    t = np.arange(m) * (n / m)
-    j = np.floor(t + 1e-12).astype(np.int64)
-    f = t - j
-    if d == 0:
-        w = [(1 - f) ** 3 / 6, (3 * f**3 - 6 * f**2 + 4) / 6, (-3 * f**3 + 3 * f**2 + 3 * f + 1) / 6, f**3 / 6]
-    elif d == 1:
-        w = [-(1 - f) ** 2 / 2, 1.5 * f**2 - 2 * f, -1.5 * f**2 + f + 0.5, f**2 / 2]
-    elif d == 2:
-        w = [1 - f, 3 * f - 2, 1 - 3 * f, f]
-    else:
-        raise ValueError("derivative order 0..2")
-    basis = np.zeros((m, n))
-    rows = np.arange(m)
-    for off, wk in zip((-1, 0, 1, 2), w):
-        np.add.at(basis, (rows, (j + off) % n), wk / step**d)
-    eigen = (4 + 2 * np.cos(2 * np.pi * np.arange(n) / n)) / 6
-    col = np.real(np.fft.ifft(1.0 / eigen))  # first column of the circulant inverse
-    return basis @ col[(np.arange(n)[:, None] - np.arange(n)[None, :]) % n]
-
-
-@lru_cache(maxsize=32)
-def open_matrix(n: int, m: int, d: int = 0) -> np.ndarray:
-    """(m, n) float64: values at n nodes on [0, 1] -> d-th derivative (per unit^d) of
-    the not-a-knot cubic spline through them, at m samples (ends included)."""
-    from scipy.interpolate import make_interp_spline
-
-    x = np.linspace(0.0, 1.0, n)
-    k = 3 if n >= 4 else n - 1
-    if d > k:
-        return np.zeros((m, n))
-    spline = make_interp_spline(x, np.eye(n), k=k)
-    return spline(np.linspace(0.0, 1.0, m), nu=d)
+# Sector boundaries (degrees): where a creased surface may bend sharply.
+SEAMS_DEG = (45.0, 135.0, 225.0, 315.0)
 
 
 @dataclass(frozen=True)
 class Cylinder:
-    """The plain outer cylinder the heightmap displaces (mm)."""
+    """The plain outer cylinder the heightmap displaces (mm), and the kind of spline in u."""
     radius_mm: float
     height_mm: float
+    creased: bool = False
 
     def node_u(self, nu: int) -> np.ndarray:
         """(nu,) float64 rad."""
@@ -80,16 +50,154 @@ class Cylinder:
         return np.linspace(0.0, self.height_mm, nv)
 
 
-def sample(heights: np.ndarray, mu: int, mv: int) -> np.ndarray:
+class UBasis:
+    """The cubic B-spline basis in u with one coefficient per node.
+
+    Smooth: the uniform periodic basis.  Creased: per sector, the clamped basis on
+    scipy's not-a-knot knots of that sector's ``n/4 + 1`` nodes; the coefficient at a seam
+    (the sectors' common end value) is shared by the two sectors that meet there.
+    """
+
+    def __init__(self, n: int, creased: bool):
+        if creased and n % 8:
+            raise ValueError(f"a creased surface needs a multiple of 8 nodes around (seams on nodes), got {n}")
+        self.n, self.creased = n, creased
+        if creased:
+            from scipy.interpolate import make_interp_spline
+
+            self.q = n // 4
+            self.local = make_interp_spline(np.linspace(0.0, 1.0, self.q + 1), np.eye(self.q + 1), k=3)
+            self.coef_from_nodes = np.zeros((n, n))
+            for s in range(4):
+                rows = (self.first_node(s) + np.arange(self.q)) % n
+                cols = (self.first_node(s) + np.arange(self.q + 1)) % n
+                self.coef_from_nodes[np.ix_(rows, cols)] = self.local.c[: self.q]
+        else:
+            eigen = (4 + 2 * np.cos(2 * np.pi * np.arange(n) / n)) / 6
+            col = np.real(np.fft.ifft(1.0 / eigen))  # first column of the circulant inverse
+            self.coef_from_nodes = col[(np.arange(n)[:, None] - np.arange(n)[None, :]) % n]
+
+    def first_node(self, sector: int) -> int:
+        """Index of the node at a creased sector's low-u seam."""
+        return self.n // 8 + sector * self.q
+
+    def design(self, u: np.ndarray, d: int = 0) -> sp.csr_matrix:
+        """(len(u), n) sparse: the d-th derivative (per rad^d) of each basis function at u (rad)."""
+        u = np.asarray(u, np.float64)
+        if d > 2:
+            raise ValueError("derivative order 0..2")
+        if self.creased:
+            return self._creased_design(u, d)
+        step = 2 * np.pi / self.n
+        t = np.mod(u, 2 * np.pi) / step
+        j = np.floor(t + 1e-12).astype(np.int64)
+        f = t - j
+        w = {0: [(1 - f) ** 3 / 6, (3 * f**3 - 6 * f**2 + 4) / 6, (-3 * f**3 + 3 * f**2 + 3 * f + 1) / 6, f**3 / 6],
+             1: [-(1 - f) ** 2 / 2, 1.5 * f**2 - 2 * f, -1.5 * f**2 + f + 0.5, f**2 / 2],
+             2: [1 - f, 3 * f - 2, 1 - 3 * f, f]}[d]
+        rows = np.repeat(np.arange(len(u)), 4)
+        cols = ((j[:, None] + np.arange(-1, 3)[None, :]) % self.n).ravel()
+        vals = np.stack(w, 1).ravel() / step**d
+        return sp.csr_matrix((vals, (rows, cols)), shape=(len(u), self.n))
+
+    def _creased_design(self, u: np.ndarray, d: int) -> sp.csr_matrix:
+        from scipy.interpolate import BSpline
+
+        span = np.pi / 2
+        rel = np.mod(u - np.radians(SEAMS_DEG[0]), 2 * np.pi) / span
+        sector = np.minimum(np.floor(rel + 1e-12).astype(np.int64), 3)
+        xi = np.clip(rel - sector, 0.0, 1.0)
+        unique, inverse = np.unique(xi, return_inverse=True)
+        local = BSpline(self.local.t, np.eye(self.q + 1), 3)
+        values = (local.derivative(d) if d else local)(unique) / span**d  # (k, q + 1), zero off support
+        rows, cols, vals = [], [], []
+        for s in range(4):
+            pick = np.flatnonzero(sector == s)
+            block = values[inverse[pick]]
+            r, c = np.nonzero(block)
+            rows.append(pick[r])
+            cols.append((self.first_node(s) + c) % self.n)
+            vals.append(block[r, c])
+        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                             shape=(len(u), self.n))
+
+
+class VBasis:
+    """The not-a-knot cubic B-spline basis in v (z normalized to [0, 1]), one coefficient per node."""
+
+    def __init__(self, n: int):
+        from scipy.interpolate import make_interp_spline
+
+        self.n = n
+        self.degree = 3 if n >= 4 else n - 1
+        spline = make_interp_spline(np.linspace(0.0, 1.0, n), np.eye(n), k=self.degree)
+        self.knots = spline.t
+        self.coef_from_nodes = spline.c
+
+    def design(self, x: np.ndarray, d: int = 0) -> sp.csr_matrix:
+        """(len(x), n) sparse: the d-th derivative (per unit^d) of each basis function at x in [0, 1]."""
+        from scipy.interpolate import BSpline
+
+        x = np.asarray(x, np.float64)
+        if d > self.degree:
+            return sp.csr_matrix((len(x), self.n))
+        basis = BSpline(self.knots, np.eye(self.n), self.degree)
+        unique, inverse = np.unique(x, return_inverse=True)
+        values = (basis.derivative(d) if d else basis)(unique)[inverse]
+        return sp.csr_matrix(np.where(np.abs(values) > 1e-15, values, 0.0))
+
+
+@lru_cache(maxsize=32)
+def u_basis(n: int, creased: bool) -> UBasis:
+    return UBasis(n, creased)
+
+
+@lru_cache(maxsize=32)
+def v_basis(n: int) -> VBasis:
+    return VBasis(n)
+
+
+@lru_cache(maxsize=32)
+def u_matrix(n: int, m: int, d: int = 0, creased: bool = False) -> np.ndarray:
+    """(m, n) float64: values at n nodes -> d-th derivative (per radian^d) of the u spline
+    through them, at m samples u = 2*pi*k/m."""
+    basis = u_basis(n, creased)
+    return np.asarray(basis.design(np.arange(m) * (2 * np.pi / m), d) @ basis.coef_from_nodes)
+
+
+@lru_cache(maxsize=32)
+def open_matrix(n: int, m: int, d: int = 0) -> np.ndarray:
+    """(m, n) float64: values at n nodes on [0, 1] -> d-th derivative (per unit^d) of the
+    not-a-knot cubic spline through them, at m samples (ends included)."""
+    basis = v_basis(n)
+    return np.asarray(basis.design(np.linspace(0.0, 1.0, m), d) @ basis.coef_from_nodes)
+
+
+def sample(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int) -> np.ndarray:
     """(nu, nv) mm at nodes -> (mu, mv) mm on the finer grid of the same spline."""
     nu, nv = heights.shape
-    return periodic_matrix(nu, mu) @ heights @ open_matrix(nv, mv).T
+    return u_matrix(nu, mu, 0, cyl.creased) @ heights @ open_matrix(nv, mv).T
 
 
-def sample_adjoint(grad_fine: np.ndarray, nu: int, nv: int) -> np.ndarray:
+def sample_adjoint(cyl: Cylinder, grad_fine: np.ndarray, nu: int, nv: int) -> np.ndarray:
     """Pull a gradient on the (mu, mv) samples back to the (nu, nv) nodes."""
     mu, mv = grad_fine.shape
-    return periodic_matrix(nu, mu).T @ grad_fine @ open_matrix(nv, mv)
+    return u_matrix(nu, mu, 0, cyl.creased).T @ grad_fine @ open_matrix(nv, mv)
+
+
+def evaluate(cyl: Cylinder, heights: np.ndarray, u: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """The spline s(u, z) at arbitrary points: (N,) rad, (N,) mm -> (N,) mm."""
+    nu, nv = heights.shape
+    ub, vb = u_basis(nu, cyl.creased), v_basis(nv)
+    coef = ub.coef_from_nodes @ np.asarray(heights, np.float64) @ vb.coef_from_nodes.T
+    u, z = np.asarray(u, np.float64), np.asarray(z, np.float64)
+    out = np.empty(len(u))
+    for start in range(0, len(u), 65536):
+        part = slice(start, start + 65536)
+        in_u = ub.design(u[part]) @ coef                      # (k, nv): each point's coefficients in v
+        in_v = vb.design(z[part] / cyl.height_mm)
+        out[part] = np.asarray(in_v.multiply(in_u).sum(axis=1)).ravel()
+    return out
 
 
 def fine_shape(nu: int, nv: int, tessellation: int) -> tuple[int, int]:
@@ -97,10 +205,10 @@ def fine_shape(nu: int, nv: int, tessellation: int) -> tuple[int, int]:
     return nu * tessellation, (nv - 1) * tessellation + 1
 
 
-def refine(heights: np.ndarray, factor: int = 4) -> np.ndarray:
+def refine(cyl: Cylinder, heights: np.ndarray, factor: int = 4) -> np.ndarray:
     """The same surface on a grid ``factor`` times finer in u and v (coarse-to-fine)."""
     nu, nv = heights.shape
-    return sample(heights, nu * factor, (nv - 1) * factor + 1)
+    return sample(cyl, heights, nu * factor, (nv - 1) * factor + 1)
 
 
 def points(cyl: Cylinder, fine: np.ndarray) -> np.ndarray:
@@ -140,7 +248,7 @@ def grid_faces(mu: int, mv: int) -> np.ndarray:
 def outer_mesh(cyl: Cylinder, heights: np.ndarray, tessellation: int) -> tuple[np.ndarray, np.ndarray]:
     """Tessellated outer surface: ((mu*mv, 3) float64 mm vertices, (F, 3) int64 faces)."""
     mu, mv = fine_shape(*heights.shape, tessellation)
-    fine = sample(heights, mu, mv)
+    fine = sample(cyl, heights, mu, mv)
     return points(cyl, fine).reshape(-1, 3), grid_faces(mu, mv)
 
 
@@ -174,9 +282,10 @@ def slopes_deg(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int) -> tuple[np
     """
     nu, nv = heights.shape
     pz = open_matrix(nv, mv)
-    r = cyl.radius_mm + periodic_matrix(nu, mu) @ heights @ pz.T
-    r_u = periodic_matrix(nu, mu, 1) @ heights @ pz.T
-    r_z = periodic_matrix(nu, mu) @ heights @ open_matrix(nv, mv, 1).T / cyl.height_mm
+    pu = u_matrix(nu, mu, 0, cyl.creased)
+    r = cyl.radius_mm + pu @ heights @ pz.T
+    r_u = u_matrix(nu, mu, 1, cyl.creased) @ heights @ pz.T
+    r_z = pu @ heights @ open_matrix(nv, mv, 1).T / cyl.height_mm
     tilt = np.degrees(np.arctan(np.hypot(r_u / r, r_z)))
     return tilt, np.degrees(np.arctan(np.abs(r_z)))
 
@@ -190,7 +299,7 @@ def slope_penalty(cyl: Cylinder, heights: np.ndarray, max_tilt_deg: float,
     instead of projecting it back after every step."""
     nu, nv = heights.shape
     mu, mv = fine_shape(nu, nv, samples_per_cell)
-    p0, p1 = periodic_matrix(nu, mu), periodic_matrix(nu, mu, 1)
+    p0, p1 = u_matrix(nu, mu, 0, cyl.creased), u_matrix(nu, mu, 1, cyl.creased)
     z0, z1 = open_matrix(nv, mv), open_matrix(nv, mv, 1) / cyl.height_mm
     r = cyl.radius_mm + p0 @ heights @ z0.T
     r_u = p1 @ heights @ z0.T

@@ -37,6 +37,21 @@ class MeshScene:
         self.scene = mi.load_dict({"type": "scene", "lens": self.mesh})
 
 
+def first_hits(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray,
+               directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where rays first meet a mesh: ((n,) bool hit, (n,) int64 face index, (n,) float64
+    distance along the unit direction, mm).  numpy in and out; Mitsuba's BVH in between."""
+    scene = MeshScene(vertices, faces)
+    mi = scene.mi
+
+    def jit(cls, a):
+        return cls(*[mi.Float(np.ascontiguousarray(a[:, k], np.float32)) for k in range(3)])
+
+    si = scene.scene.ray_intersect(mi.Ray3f(jit(mi.Point3f, origins), jit(mi.Vector3f, directions)),
+                                   mi.RayFlags.Minimal, False)
+    return si.is_valid().numpy(), si.prim_index.numpy().astype(np.int64), si.t.numpy().astype(np.float64)
+
+
 def _np(v) -> np.ndarray:
     return np.stack([v.x.numpy(), v.y.numpy(), v.z.numpy()], 1).astype(np.float64)
 

@@ -11,17 +11,19 @@ def test_periodic_matrix_matches_scipy(rng):
     y = rng.normal(size=n)
     x = np.linspace(0, 2 * np.pi, n + 1)
     ref = make_interp_spline(x, np.append(y, y[0]), k=3, bc_type="periodic")(np.arange(m) * 2 * np.pi / m)
-    assert np.allclose(surface.periodic_matrix(n, m) @ y, ref, atol=1e-12)
+    assert np.allclose(surface.u_matrix(n, m) @ y, ref, atol=1e-12)
 
 
-def test_refine_keeps_node_values_and_adjoint_is_transpose(rng):
+@pytest.mark.parametrize("creased", [False, True])
+def test_refine_keeps_node_values_and_adjoint_is_transpose(rng, cyl, creased):
+    cyl = surface.Cylinder(cyl.radius_mm, cyl.height_mm, creased)
     h = rng.normal(size=(16, 5))
-    fine = surface.refine(h, 4)
+    fine = surface.refine(cyl, h, 4)
     assert fine.shape == (64, 17)
     assert np.allclose(fine[::4, ::4], h)
     g = rng.normal(size=fine.shape)
     # <A h, g> == <h, A^T g>
-    assert np.isclose(np.sum(fine * g), np.sum(h * surface.sample_adjoint(g, 16, 5)))
+    assert np.isclose(np.sum(fine * g), np.sum(h * surface.sample_adjoint(cyl, g, 16, 5)))
 
 
 def test_closed_outer_mesh_is_a_watertight_outward_solid(cyl, rng):

@@ -1,12 +1,107 @@
-"""The transport design's sector placement and slope projection."""
+"""The transport design: photons, their landing, the surface fit, the goals."""
 
 import numpy as np
+import pytest
 
-from lampfab import room, surface, transport
+from lampfab import profile, raymap, room, surface, trace, transport
 
 
-def _walls(design):
-    return room.walls(design)
+def _nominal(walls):
+    return {w.name: w.sector_deg() for w in walls}
+
+
+@pytest.fixture(scope="module")
+def photons(inner_layer, default_design):
+    return raymap.stratified_photons(*inner_layer, room.light_position(default_design), 1.5, 128, 64, seed=2)
+
+
+def test_photons_cover_the_sphere_and_enter_the_glass(photons):
+    assert len(photons.weight) >= 0.99 * 128 * 64
+    # Uniform on the sphere: the mean direction is ~0 and half the light goes up.
+    assert np.abs(photons.emitted.mean(axis=0)).max() < 0.01
+    assert np.mean(photons.emitted[:, 2] > 0) == pytest.approx(0.5, abs=0.01)
+    # Fresnel at the inner layer takes 4 % at normal incidence, more when slanted.
+    transmitted = photons.weight * len(photons.weight)
+    assert 0.0 <= transmitted.min() and transmitted.max() <= 0.961
+    assert 0.85 < transmitted.mean() < 0.96
+    # Refraction keeps a photon near the plane of its emission and the axis: the bore is a
+    # 1024-sided prism around the light, whose facets turn it by less than pi / 1024.
+    az_in = np.arctan2(photons.direction[:, 1], photons.direction[:, 0])
+    az_out = np.arctan2(photons.emitted[:, 1], photons.emitted[:, 0])
+    side = np.abs(photons.emitted[:, 2]) < 0.5
+    assert np.abs(np.angle(np.exp(1j * (az_in - az_out)))[side]).max() < np.pi / 1024
+
+
+def test_landing_agrees_with_the_photon_tracer(mi, photons, default_design, cyl):
+    """Where raymap says a photon lands is the pixel Mitsuba's tracer puts it in."""
+    walls = room.walls(default_design)
+    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
+    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, 45.0, 20.0, 1e-2)
+    rng = np.random.default_rng(0)
+    heights = 2.0 * rng.standard_normal((32, 9))
+    land = fitter.trace(heights)
+    shapes = [room.image_shape(w, 32) for w in walls]
+    vertices, faces = surface.closed_outer_mesh(cyl, heights, 2)
+    scene = trace.MeshScene(vertices, faces)
+    o = mi.Point3f(*[mi.Float(photons.origin[land.index, k].astype(np.float32)) for k in range(3)])
+    d = mi.Vector3f(*[mi.Float(photons.direction[land.index, k].astype(np.float32)) for k in range(3)])
+    si = scene.scene.ray_intersect(mi.Ray3f(o, d), mi.RayFlags.Minimal, False)
+    import drjit as dr
+
+    out = trace.refract_or_reflect(mi, d, si.n, 1.5, dr.full(mi.Float, 1.0, len(land.index)))  # no Fresnel
+    pixel = trace.pixel_hits(mi, walls, shapes, si.p, out)
+    offsets = np.cumsum([0] + [r * c for r, c in shapes])
+    expected = np.full(len(land.index), -1)
+    for k, (wall, (rows, cols)) in enumerate(zip(walls, shapes)):
+        col = np.floor(land.xy[:, 0] / wall.width_mm * cols)
+        row = np.floor(land.xy[:, 1] / wall.height_mm * rows)
+        inside = land.ok & (wall_of[land.index] == k) & (col >= 0) & (col < cols) & (row >= 0) & (row < rows)
+        expected[inside] = offsets[k] + (row * cols + col)[inside].astype(int)
+    on_wall = expected >= 0
+    assert on_wall.sum() > 1000
+    assert np.mean(pixel[on_wall] == expected[on_wall]) > 0.995  # the rest sit on a pixel's edge (float32)
+
+
+@pytest.mark.parametrize("creased", [False, True])
+def test_fit_finds_a_surface_that_lands_photons_at_its_goals(photons, default_design, cyl, creased):
+    """Goals made by a known bumpy surface: the fit from a plain cylinder lands the light there."""
+    cyl = surface.Cylinder(cyl.radius_mm, cyl.height_mm, creased)
+    walls = room.walls(default_design)
+    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
+    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, 45.0, 20.0, 1e-4)
+    u = cyl.node_u(32)[:, None]
+    z = cyl.node_z(9)[None, :]
+    truth = 3.0 * np.sin(3 * u) * np.cos(np.pi * z / cyl.height_mm) + 0.02 * (z - 45.0)
+    land = fitter.trace(truth)
+    goals = np.full((len(wall_of), 2), np.nan)
+    goals[land.index[land.ok]] = land.xy[land.ok]
+    start = fitter.trace(np.zeros_like(truth))
+    before = np.sqrt(np.nanmean(np.sum((start.xy - goals[start.index]) ** 2, axis=1)))
+    fitted, figures = fitter.fit(np.zeros_like(truth), goals, 6)
+    assert before > 100.0                                   # mm: the plain lens misses by a lot
+    assert figures["rms_landing_error_mm"] < 0.05 * before
+    # The same surface where photons have goals (not behind the lamp), up to a constant.
+    lit = np.mod(np.degrees(cyl.node_u(32)) + 45.0, 360.0) < 270.0
+    error = (fitted - truth)[lit]
+    assert np.abs(error - error.mean()).max() < 0.5
+
+
+def test_sectors_follow_the_walls_and_skip_light_no_slope_can_reach(default_design):
+    import dataclasses
+
+    light = room.light_position(default_design)
+    walls = room.walls(default_design)
+    with_floor = dataclasses.replace(default_design, room=dataclasses.replace(default_design.room,
+                                                                             walls=("front", "floor")))
+    az = np.radians([90.0, 180.0, 0.0, 270.0, 270.0])
+    el = np.radians([0.0, 10.0, -10.0, -40.0, 40.0])
+    d = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], 1)
+    names = [w.name for w in walls]
+    got = transport.sector_of(d, walls, _nominal(walls), light, 1.5, 45.0)
+    assert [names[k] if k >= 0 else None for k in got] == ["front", "left", "right", None, None]
+    # Behind the lamp, light going down reaches the floor; light going up cannot.
+    floor = room.walls(with_floor)
+    assert list(transport.sector_of(d, floor, _nominal(floor), light, 1.5, 45.0)) == [0, -1, -1, 1, -1]
 
 
 def _left_heavy(shape):
@@ -17,38 +112,63 @@ def _left_heavy(shape):
 
 
 def test_centred_images_keep_the_nominal_sectors(default_design):
-    walls = _walls(default_design)
-    light = room.light_position(default_design)
+    walls = room.walls(default_design)
     targets = [np.ones(room.image_shape(w, 32)) for w in walls]
-    spans = transport.sectors(walls, targets, light, dump_share=0.2)
+    spans = transport.sector_spans(walls, targets, room.light_position(default_design))
     for wall in walls:
         assert np.allclose(spans[wall.name], wall.sector_deg(), atol=1e-6)
 
 
 def test_off_centre_images_turn_every_sector_the_same_way(default_design):
-    walls = _walls(default_design)
-    light = room.light_position(default_design)
+    walls = room.walls(default_design)
     targets = [_left_heavy(room.image_shape(w, 32)) for w in walls]
-    spans = transport.sectors(walls, targets, light, dump_share=0.2)
-    # Seen from the lamp, the left of every wall's image lies at larger u (see
-    # test_room's orientation test): each sector turns that way, by the same angle.
+    spans = transport.sector_spans(walls, targets, room.light_position(default_design))
+    # Seen from the lamp, the left of every wall's image lies at larger u: each sector
+    # turns that way, by the same angle.
     front_shift = np.mean(spans["front"]) - 90.0
     assert front_shift > 5.0
     assert np.isclose(np.mean(spans["left"]) - 180.0, front_shift, atol=0.5)
     # Neighbours meet without a gap or an overlap ...
     assert np.isclose(spans["right"][1], spans["front"][0])
     assert np.isclose(spans["front"][1], spans["left"][0])
-    # ... and a side facing no wall still covers the centred sector, so the unbent
-    # light beyond it cannot reach the image.
+    # ... and a side facing no wall still covers the centred sector.
     assert spans["right"][0] <= -45.0 + 1e-9
     assert spans["left"][1] >= 225.0 - 1e-9
 
 
-def test_sector_nodes_wrap_round_zero():
-    nodes = transport.sector_nodes((-45.0, 45.0), 16)
-    u = nodes * 360 / 16
-    assert list(nodes) == [14, 15, 0, 1]  # 315°, 337.5°, 0°, 22.5°
-    assert np.all((u >= 315) | (u < 45))
+def test_frame_angles_increase_along_the_image_axes(default_design):
+    light = room.light_position(default_design)
+    for wall in room.walls(default_design):
+        points = wall.centre + np.array([[0.0] * 3, 0.1 * wall.right, 0.1 * wall.down])
+        across, down = transport._frame_angles(wall, light, points - light)
+        assert abs(across[0]) < 1e-12 and abs(down[0]) < 1e-12
+        assert across[1] > 0 and abs(down[1]) < 1e-12
+        assert down[2] > 0 and abs(across[2]) < 1e-12
+
+
+@pytest.mark.slow
+def test_transport_alone_projects_the_target(tiny_design, inner_layer):
+    """The whole design on a tiny grid: most of the light lands on the bright disc."""
+    walls = room.walls(tiny_design)
+    light = room.light_position(tiny_design)
+    targets = []
+    for wall in walls:
+        rows, cols = room.image_shape(wall, 16)
+        yy, xx = np.mgrid[:rows, :cols]
+        targets.append(((xx - cols / 2 + 0.5) ** 2 + (yy - rows / 2 + 0.5) ** 2 < (0.35 * rows) ** 2).astype(float))
+    cyl = surface.Cylinder(45.0, 90.0, creased=True)
+    heights, figures = transport.design(cyl, walls, targets, *inner_layer, light, 1.5, (32, 9), 2, 3, 60_000,
+                                        1e-2, 20.0, 45.0, seed=0, corrections=1, dump_share=0.1, log=lambda m: None)
+    assert figures["max_tilt_deg"] <= 45.0
+    assert np.abs(heights).max() <= 20.0
+    from lampfab import lens, metrics
+
+    v, f = lens.optical_mesh(cyl, heights, 2, *inner_layer)
+    images, _ = trace.render_walls(trace.MeshScene(v, f), light, 0.0, 1.5, walls, [t.shape for t in targets],
+                                   400_000, seed=1)
+    for img, target in zip(images, targets):
+        assert metrics.pearson(img, target) > 0.8
+        assert img[target > 0].sum() > 0.75 * img.sum()          # a plain lens: ~0.3, the disc's area
 
 
 def test_slope_projection_meets_the_limit_and_keeps_gentle_parts(cyl, rng):

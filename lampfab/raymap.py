@@ -1,0 +1,358 @@
+"""Ray mapping: the outer surface that lands each photon where it should.
+
+The light inside the glass does not depend on the outer surface.  Photons leave the LED
+on a stratified grid of directions (uniform on the sphere, jittered with a seed) and are
+refracted once at the inner layer's facets, in float64, with the Fresnel transmission
+as their weight (``stratified_photons``).
+
+``RayMap.fit`` then finds the heightmap whose tessellation (the STL's facets) sends
+each photon to its goal on its wall: Levenberg-Marquardt on
+
+    sum_p w_p |landing_p(h) - goal_p|^2  +  slope excess^2  +  offset excess^2  +  smoothness
+
+``landing_p`` is where photon p lands (mm along the wall image's right and down axes)
+after refracting at the facet it meets (Mitsuba finds the facet).  It depends on the
+radial offsets of that facet's three corners (central differences, float64), and those
+on the spline's local B-spline coefficients (``surface.UBasis``/``VBasis``), so the
+normal equations are sparse.  Fresnel reflection is left out: verify traces it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
+
+from . import surface
+from .room import Wall
+
+# Radial step of the central differences (mm): float64 landing positions keep ~1e-9 mm,
+# so the derivative is good to ~1e-6 relative; curvature errors are ~(1e-3)^2.
+DIFF_STEP_MM = 1e-3
+
+# The slope term aims this far under the fabrication limit: the check samples the spline
+# at other points than the fit, and the final projection (transport.limit_slopes) then
+# has little to do.
+SLOPE_MARGIN_DEG = 1.0
+
+# Weights, relative to the landing error (mm^2 on a wall about 1 m away, photon flux
+# normalized to 1).  A slope's tangent over the limit by 0.01 costs like a landing error
+# of ~100 mm over the whole lens; an offset past the bound by 1 mm like ~30 mm.
+SLOPE_WEIGHT = 1e8
+OFFSET_WEIGHT = 1e3
+# Landing positions fix the surface's slopes firmly but its level (the offset shared by a
+# whole sector) hardly at all: left free, sectors drift apart until one meets the offset
+# bound.  A 10 mm level costs like a 1 mm landing error.
+LEVEL_WEIGHT = 1e-2
+
+# Levenberg-Marquardt damping: start, and the factors after a rejected / accepted step.
+DAMPING_START = 1e-2
+DAMPING_UP, DAMPING_DOWN = 4.0, 3.0
+DAMPING_MAX = 1e6
+
+# Conjugate gradients solve each step to this relative residual (a step only needs to be
+# roughly right: the next one corrects it); past this many iterations, a direct solve.
+CG_RTOL = 1e-4
+CG_MAX_ITERATIONS = 2000
+
+
+@dataclass
+class Photons:
+    """Photons inside the glass, after the inner layer.
+
+    origin (n, 3) mm just inside the glass; direction (n, 3) unit, in the glass;
+    emitted (n, 3) unit direction leaving the LED; weight (n,) share of the emitted
+    light each carries after the inner layer; stratum (n, 2) float: continuous
+    (azimuth, sin elevation) grid coordinates in [0, n_azimuth) x [0, n_elevation).
+    """
+    origin: np.ndarray
+    direction: np.ndarray
+    emitted: np.ndarray
+    weight: np.ndarray
+    stratum: np.ndarray
+    n_azimuth: int
+    n_elevation: int
+
+
+def fresnel_transmission(cos_i: np.ndarray, eta: float) -> tuple[np.ndarray, np.ndarray]:
+    """Unpolarized transmittance and cos of the refracted angle (0 under total internal
+    reflection) for incidence cosines ``cos_i`` (>= 0) and eta = n_transmitted / n_incident."""
+    sin2_t = (1.0 - cos_i**2) / eta**2
+    cos_t = np.sqrt(np.maximum(1.0 - sin2_t, 0.0))
+    rs = ((cos_i - eta * cos_t) / (cos_i + eta * cos_t)) ** 2
+    rp = ((eta * cos_i - cos_t) / (eta * cos_i + cos_t)) ** 2
+    return np.where(sin2_t >= 1.0, 0.0, 1.0 - 0.5 * (rs + rp)), cos_t
+
+
+def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, light_mm: np.ndarray,
+                       ior: float, n_azimuth: int, n_elevation: int, seed: int) -> Photons:
+    """One photon per cell of an (azimuth, sin elevation) grid, jittered inside its cell,
+    refracted into the glass at the inner layer (faces wound outward, away from the light)."""
+    from .trace import first_hits
+
+    rng = np.random.default_rng(seed)
+    i, j = np.meshgrid(np.arange(n_azimuth), np.arange(n_elevation), indexing="ij")
+    a = (i + rng.random(i.shape)).ravel()
+    s = (j + rng.random(j.shape)).ravel()
+    phi = 2 * np.pi * a / n_azimuth
+    sin_el = -1.0 + 2.0 * s / n_elevation
+    cos_el = np.sqrt(1.0 - sin_el**2)
+    emitted = np.stack([cos_el * np.cos(phi), cos_el * np.sin(phi), sin_el], axis=1)
+    start = np.broadcast_to(np.asarray(light_mm, np.float64), emitted.shape)
+    valid, prim, t = first_hits(inner_vertices, inner_faces, start, emitted)
+    if valid.mean() < 0.99:
+        raise ValueError("photons leave the inner layer without crossing it: the light is not inside it")
+    # A few rays slip between two facets (float32 intersection is not watertight): dropped.
+    emitted, start, prim, t = emitted[valid], start[valid], prim[valid], t[valid]
+    a, s = a[valid], s[valid]
+    tri = inner_vertices[inner_faces[prim]]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    cos_i = np.einsum("ij,ij->i", emitted, normal)
+    along = np.where(cos_i[:, None] >= 0, normal, -normal)  # the facet normal on the glass side
+    transmitted, cos_t = fresnel_transmission(np.abs(cos_i), ior)
+    inside = emitted / ior + (cos_t - np.abs(cos_i) / ior)[:, None] * along
+    inside /= np.linalg.norm(inside, axis=1, keepdims=True)
+    origin = start + t[:, None] * emitted + 1e-4 * inside
+    return Photons(origin, inside, emitted, transmitted / len(valid), np.stack([a, s], axis=1),
+                   n_azimuth, n_elevation)
+
+
+class WallFrames:
+    """The walls' planes as arrays, indexed by wall number."""
+
+    def __init__(self, walls: list[Wall]):
+        self.origin = np.array([w.origin for w in walls])
+        self.right = np.array([w.right / w.width_mm for w in walls])
+        self.down = np.array([w.down / w.height_mm for w in walls])
+        self.normal = np.array([w.normal for w in walls])
+
+
+def landing(origin: np.ndarray, direction: np.ndarray, v0: np.ndarray, v1: np.ndarray, v2: np.ndarray,
+            ior: float, frames: WallFrames, wall: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where photons in the glass land after leaving through the facets (v0, v1, v2).
+
+    All (k, 3) mm; the facets are wound outward.  ``wall`` (k,) int: the wall each
+    photon is meant for.  Returns ((k, 2) mm along the wall image's right and down axes
+    from its top-left corner, (k,) bool: the photon leaves (no total internal
+    reflection) towards the wall's plane)."""
+    normal = np.cross(v1 - v0, v2 - v0)
+    t = np.einsum("ij,ij->i", v0 - origin, normal) / np.einsum("ij,ij->i", direction, normal)
+    p = origin + t[:, None] * direction
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    cos_i = np.einsum("ij,ij->i", direction, normal)
+    sin2_t = (1.0 - cos_i**2) * ior**2
+    cos_t = np.sqrt(np.maximum(1.0 - sin2_t, 0.0))
+    out = direction * ior - (cos_i * ior - cos_t)[:, None] * normal
+    out /= np.linalg.norm(out, axis=1, keepdims=True)
+    n_w = frames.normal[wall]
+    denom = np.einsum("ij,ij->i", out, n_w)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_w = np.einsum("ij,ij->i", frames.origin[wall] - p, n_w) / denom
+    rel = p + t_w[:, None] * out - frames.origin[wall]
+    xy = np.stack([np.einsum("ij,ij->i", rel, frames.right[wall]), np.einsum("ij,ij->i", rel, frames.down[wall])], 1)
+    ok = (sin2_t < 1.0) & (cos_i > 0) & (denom < 0) & (t_w > 0) & np.isfinite(xy).all(axis=1)
+    return xy, ok
+
+
+@dataclass
+class Landing:
+    """Where the photons that meet the outer side surface land.
+
+    index (k,) into the photon set; xy (k, 2) mm on their walls; ok (k,) bool;
+    corners (k, 3) int fine-grid vertices of the facet crossed; jacobian (k, 2, 3)
+    d xy / d radial offset of each corner, or None."""
+    index: np.ndarray
+    xy: np.ndarray
+    ok: np.ndarray
+    corners: np.ndarray
+    jacobian: np.ndarray | None
+
+
+class _Grid:
+    """Sparse maps from a node grid's B-spline coefficients to its tessellation."""
+
+    def __init__(self, cyl: surface.Cylinder, nu: int, nv: int, tessellation: int):
+        self.shape = (nu, nv)
+        self.mu, self.mv = surface.fine_shape(nu, nv, tessellation)
+        ub, vb = surface.u_basis(nu, cyl.creased), surface.v_basis(nv)
+        u_fine = np.arange(self.mu) * (2 * np.pi / self.mu)
+        z_fine = np.linspace(0.0, 1.0, self.mv)
+        bu = [ub.design(u_fine, d) for d in (0, 1)]
+        bv = [vb.design(z_fine, d) for d in (0, 1)]
+        self.value = sp.kron(bu[0], bv[0]).tocsr()                          # (mu*mv, nu*nv)
+        self.d_u = sp.kron(bu[1], bv[0]).tocsr()                            # per rad
+        self.d_z = (sp.kron(bu[0], bv[1]) / cyl.height_mm).tocsr()          # per mm
+        self.gram = (self.value.T @ self.value).tocsr()
+        self.coef_from_nodes = (ub.coef_from_nodes, vb.coef_from_nodes)
+        self.nodes_from_coef = (ub.design(cyl.node_u(nu)).toarray(), vb.design(np.linspace(0.0, 1.0, nv)).toarray())
+        self.smooth = _second_differences(nu, nv, cyl.creased, ub)
+
+    def coef(self, heights: np.ndarray) -> np.ndarray:
+        cu, cv = self.coef_from_nodes
+        return cu @ heights @ cv.T
+
+    def nodes(self, coef: np.ndarray) -> np.ndarray:
+        nu_, nv_ = self.nodes_from_coef
+        return nu_ @ coef @ nv_.T
+
+
+def _second_differences(nu: int, nv: int, creased: bool, ub) -> sp.csr_matrix:
+    """Second differences of the coefficients along u (periodic; none across a crease)
+    and along v: the curvature the fit is charged for."""
+    rows_u = np.arange(nu)
+    if creased:
+        seams = {ub.first_node(s) % nu for s in range(4)}
+        rows_u = np.array([i for i in rows_u if i not in seams])
+    d_u = sp.csr_matrix((np.tile([1.0, -2.0, 1.0], len(rows_u)),
+                         (np.repeat(np.arange(len(rows_u)), 3),
+                          np.stack([(rows_u - 1) % nu, rows_u, (rows_u + 1) % nu], 1).ravel())),
+                        shape=(len(rows_u), nu))
+    d_v = sp.diags([np.ones(nv - 2), -2 * np.ones(nv - 2), np.ones(nv - 2)], [0, 1, 2], shape=(nv - 2, nv))
+    return sp.vstack([sp.kron(d_u, sp.identity(nv)), sp.kron(sp.identity(nu), d_v)]).tocsr()
+
+
+class RayMap:
+    """Fits the outer surface to per-photon goals (see the module docstring)."""
+
+    def __init__(self, cyl: surface.Cylinder, tessellation: int, photons: Photons, walls: list[Wall],
+                 wall_of: np.ndarray, ior: float, max_tilt_deg: float, max_offset_mm: float,
+                 smoothness: float):
+        self.cyl, self.tessellation, self.photons = cyl, tessellation, photons
+        self.frames = WallFrames(walls)
+        self.wall_of = wall_of
+        self.ior = ior
+        self.tan_limit = np.tan(np.radians(max_tilt_deg - SLOPE_MARGIN_DEG))
+        self.max_offset = max_offset_mm
+        self.smoothness = smoothness
+        self._grids: dict = {}
+
+    def grid(self, shape: tuple[int, int]) -> _Grid:
+        if shape not in self._grids:
+            self._grids[shape] = _Grid(self.cyl, *shape, self.tessellation)
+        return self._grids[shape]
+
+    def trace(self, heights: np.ndarray, jacobian: bool = False) -> Landing:
+        """Trace every photon meant for a wall through the tessellated surface."""
+        from .trace import first_hits
+
+        mu, mv = surface.fine_shape(*heights.shape, self.tessellation)
+        vertices, faces = surface.closed_outer_mesh(self.cyl, heights, self.tessellation)
+        candidates = np.flatnonzero(self.wall_of >= 0)
+        ph = self.photons
+        valid, prim, _ = first_hits(vertices, faces, ph.origin[candidates], ph.direction[candidates])
+        side = valid & (prim < 2 * mu * (mv - 1))  # not a cap
+        index = candidates[side]
+        corners = faces[prim[side]]
+        wall = self.wall_of[index]
+        o, d = ph.origin[index], ph.direction[index]
+        v = [vertices[corners[:, c]] for c in range(3)]
+        xy, ok = landing(o, d, *v, self.ior, self.frames, wall)
+        jac = None
+        if jacobian:
+            jac = np.zeros((len(index), 2, 3))
+            for c in range(3):
+                radial = v[c] * [1.0, 1.0, 0.0]
+                radial /= np.linalg.norm(radial, axis=1, keepdims=True)
+                moved = [list(v), list(v)]
+                moved[0][c] = v[c] + DIFF_STEP_MM * radial
+                moved[1][c] = v[c] - DIFF_STEP_MM * radial
+                plus, _ = landing(o, d, *moved[0], self.ior, self.frames, wall)
+                minus, _ = landing(o, d, *moved[1], self.ior, self.frames, wall)
+                jac[:, :, c] = (plus - minus) / (2 * DIFF_STEP_MM)
+            ok &= np.isfinite(jac).all(axis=(1, 2))
+        return Landing(index, xy, ok, corners, jac)
+
+    def _terms(self, grid: _Grid, coef: np.ndarray, goals: np.ndarray, with_jacobian: bool) -> dict:
+        """The objective and, with ``with_jacobian``, its Gauss-Newton matrix and gradient."""
+        heights = grid.nodes(coef)
+        land = self.trace(heights, with_jacobian)
+        goal = goals[land.index]
+        use = land.ok & np.isfinite(goal).all(axis=1)
+        w = np.where(use, self.photons.weight[land.index], 0.0) / max(self.photons.weight[land.index].sum(), 1e-300)
+        residual = np.where(use[:, None], land.xy - np.where(np.isfinite(goal), goal, 0.0), 0.0)
+        data = float(np.sum(w[:, None] * residual**2))
+        c = coef.ravel()
+        offset = grid.value @ c
+        r = self.cyl.radius_mm + offset
+        r_u, r_z = grid.d_u @ c, grid.d_z @ c
+        tan_tilt = np.hypot(r_u / r, r_z)
+        slope_excess = np.maximum(tan_tilt - self.tan_limit, 0.0)
+        offset_excess = np.sign(offset) * np.maximum(np.abs(offset) - self.max_offset, 0.0)
+        smooth = grid.smooth @ c
+        n_fine = len(offset)
+        value = (data + SLOPE_WEIGHT * float(slope_excess @ slope_excess) / n_fine
+                 + OFFSET_WEIGHT * float(offset_excess @ offset_excess) / n_fine
+                 + LEVEL_WEIGHT * float(offset @ offset) / n_fine + self.smoothness * float(smooth @ smooth))
+        out = {"value": value, "data": data, "max_tilt_deg": float(np.degrees(np.arctan(tan_tilt.max()))),
+               "landing": land, "use": use}
+        if not with_jacobian:
+            return out
+        k = len(land.index)
+        sw = np.sqrt(w)
+        rows = np.broadcast_to(np.arange(2 * k).reshape(k, 2, 1), (k, 2, 3))
+        cols = np.broadcast_to(land.corners[:, None, :], (k, 2, 3))
+        jac_v = sp.csr_matrix(((np.where(use[:, None, None], land.jacobian, 0.0) * sw[:, None, None]).ravel(),
+                               (rows.ravel(), cols.ravel())), shape=(2 * k, grid.mu * grid.mv))
+        per_vertex = (jac_v.T @ jac_v).tocsr()
+        matrix = grid.value.T @ per_vertex @ grid.value
+        gradient = grid.value.T @ (jac_v.T @ (residual * sw[:, None]).ravel())
+        over = np.flatnonzero(slope_excess > 0)
+        if len(over):
+            t = tan_tilt[over]
+            # d tan_tilt = (r_u / r^2 d r_u - r_u^2 / r^3 d r + r_z d r_z) / tan_tilt
+            slope_jac = (sp.diags(r_u[over] / r[over] ** 2 / t) @ grid.d_u[over]
+                         - sp.diags(r_u[over] ** 2 / r[over] ** 3 / t) @ grid.value[over]
+                         + sp.diags(r_z[over] / t) @ grid.d_z[over])
+            matrix = matrix + (SLOPE_WEIGHT / n_fine) * (slope_jac.T @ slope_jac)
+            gradient = gradient + (SLOPE_WEIGHT / n_fine) * (slope_jac.T @ slope_excess[over])
+        matrix = matrix + (LEVEL_WEIGHT / n_fine) * grid.gram
+        gradient = gradient + (LEVEL_WEIGHT / n_fine) * (grid.value.T @ offset)
+        far = np.flatnonzero(offset_excess != 0)
+        if len(far):
+            matrix = matrix + (OFFSET_WEIGHT / n_fine) * (grid.value[far].T @ grid.value[far])
+            gradient = gradient + (OFFSET_WEIGHT / n_fine) * (grid.value[far].T @ offset_excess[far])
+        matrix = matrix + self.smoothness * (grid.smooth.T @ grid.smooth)
+        gradient = gradient + self.smoothness * (grid.smooth.T @ smooth)
+        out.update(matrix=matrix.tocsr(), gradient=gradient)
+        return out
+
+    def fit(self, heights: np.ndarray, goals: np.ndarray, iterations: int, log=None) -> tuple[np.ndarray, dict]:
+        """Levenberg-Marquardt from ``heights`` (nu, nv) mm towards ``goals`` (n_photons, 2)
+        mm (NaN: no goal).  Returns (heights, figures of the last iterate)."""
+        grid = self.grid(heights.shape)
+        coef = grid.coef(heights)
+        current = self._terms(grid, coef, goals, True)
+        damping = DAMPING_START
+        for it in range(iterations):
+            diagonal = current["matrix"].diagonal() + 1e-12
+            while damping <= DAMPING_MAX:
+                step = _solve(current["matrix"] + damping * sp.diags(diagonal), -current["gradient"])
+                # Most steps are taken: the trial carries what the next step needs.
+                trial = self._terms(grid, coef + step.reshape(coef.shape), goals, True)
+                if trial["value"] < current["value"]:
+                    coef, current = coef + step.reshape(coef.shape), trial
+                    damping = max(damping / DAMPING_DOWN, 1e-6)
+                    break
+                damping *= DAMPING_UP
+            else:
+                break  # no step lowers the objective: converged as far as it goes
+            if log:
+                log(f"transport: fit {heights.shape[0]}x{heights.shape[1]} step {it + 1}: landing error "
+                    f"{np.sqrt(current['data']):.1f} mm rms, max tilt {current['max_tilt_deg']:.1f}°")
+        figures = {"rms_landing_error_mm": float(np.sqrt(current["data"])), "max_tilt_deg": current["max_tilt_deg"]}
+        return grid.nodes(coef), figures
+
+
+def _solve(matrix: sp.csr_matrix, rhs: np.ndarray) -> np.ndarray:
+    """The damped normal equations (symmetric positive definite): conjugate gradients with
+    a Jacobi preconditioner, to the accuracy a Levenberg-Marquardt step needs; a direct
+    solve if they stall."""
+    from scipy.sparse.linalg import LinearOperator, cg
+
+    inverse_diagonal = 1.0 / matrix.diagonal()
+    preconditioner = LinearOperator(matrix.shape, matvec=lambda x: inverse_diagonal * x)
+    x, info = cg(matrix, rhs, rtol=CG_RTOL, maxiter=CG_MAX_ITERATIONS, M=preconditioner)
+    return x if info == 0 else spsolve(matrix.tocsc(), rhs)
