@@ -4,7 +4,8 @@
     make lamp TARGET=examples/apple.png && .venv/bin/python examples/figures.py apple
 
 writes examples/results/apple.png: the target, then what verify rendered from the
-exported STL on each wall (point light, then the LED's real size), with Pearson r.
+exported STL on each wall (point light, then the LED's real size), with Pearson r; and
+examples/results/apple_room.png, the report's path-traced picture of the lamp in its room.
 When the walls have different targets (a panorama, per-wall images), a first row shows
 each wall's target.  ``--build DIR`` reads DIR/<name> instead of build/<name>.
 """
@@ -53,6 +54,9 @@ def figure(name: str, builds: Path = ROOT / "build") -> Path:
     out = ROOT / "examples" / "results" / f"{name}.png"
     out.parent.mkdir(exist_ok=True)
     sheet.save(out)
+    room = build / "report" / "room.png"           # the report's picture of the lamp in its room
+    if room.exists():
+        Image.open(room).save(out.with_name(f"{name}_room.png"))
     return out
 
 

@@ -307,7 +307,8 @@ def init(build: Build) -> dict:
             build.cylinder, build.walls, build.targets(opt.sensor_px), iv, if_, build.light,
             build.fab.ior, grid, opt.tessellation, opt.transport_rounds, opt.transport_photons,
             opt.smoothness, d.lens.max_offset_mm, build.fab.max_slope_deg, opt.seed,
-            corrections=opt.transport_corrections, dump_share=opt.dump_share, log=_log)
+            corrections=opt.transport_corrections, dump_share=opt.dump_share,
+            tool_radius_mm=build.fab.tool_radius_mm, log=_log)
         report.figure(method="transport", **figs)
     artifacts.write_npz(build.path("init.npz"), heights=heights)
     report.write(build.path("init.json"))

@@ -47,6 +47,14 @@ OFFSET_WEIGHT = 1e3
 # bound.  A 10 mm level costs like a 1 mm landing error.
 LEVEL_WEIGHT = 1e-2
 
+# A ball-end tool of radius R reaches the bottom of a hollow only where the surface curves
+# no tighter than 1/R; the fit aims this much wider, since it charges the curvature along
+# u and z (the check takes the largest principal curvature, which can lie between them).
+CURVATURE_MARGIN = 1.25
+# Like the slope term: a curvature over the limit by 0.01 / mm on a tenth of the lens
+# costs like a landing error of ~30 mm.
+CURVATURE_WEIGHT = 1e8
+
 # Levenberg-Marquardt damping: start, and the factors after a rejected / accepted step.
 DAMPING_START = 1e-2
 DAMPING_UP, DAMPING_DOWN = 4.0, 3.0
@@ -186,6 +194,8 @@ class _Grid:
         self.d_u = sp.kron(bu[1], bv[0]).tocsr()                            # per rad
         self.d_z = (sp.kron(bu[0], bv[1]) / cyl.height_mm).tocsr()          # per mm
         self.gram = (self.value.T @ self.value).tocsr()
+        self.d_uu = sp.kron(ub.design(u_fine, 2), bv[0]).tocsr()                        # per rad^2
+        self.d_zz = (sp.kron(bu[0], vb.design(z_fine, 2)) / cyl.height_mm**2).tocsr()  # per mm^2
         self.coef_from_nodes = (ub.coef_from_nodes, vb.coef_from_nodes)
         self.nodes_from_coef = (ub.design(cyl.node_u(nu)).toarray(), vb.design(np.linspace(0.0, 1.0, nv)).toarray())
         self.smooth = _second_differences(nu, nv, cyl.creased, ub)
@@ -219,7 +229,7 @@ class RayMap:
 
     def __init__(self, cyl: surface.Cylinder, tessellation: int, photons: Photons, walls: list[Wall],
                  wall_of: np.ndarray, ior: float, max_tilt_deg: float, max_offset_mm: float,
-                 smoothness: float):
+                 smoothness: float, tool_radius_mm: float = 0.0):
         self.cyl, self.tessellation, self.photons = cyl, tessellation, photons
         self.frames = WallFrames(walls)
         self.wall_of = wall_of
@@ -227,6 +237,7 @@ class RayMap:
         self.tan_limit = np.tan(np.radians(max_tilt_deg - SLOPE_MARGIN_DEG))
         self.max_offset = max_offset_mm
         self.smoothness = smoothness
+        self.max_curvature = 1.0 / (CURVATURE_MARGIN * tool_radius_mm) if tool_radius_mm > 0 else None
         self._grids: dict = {}
 
     def grid(self, shape: tuple[int, int]) -> _Grid:
@@ -283,8 +294,10 @@ class RayMap:
         offset_excess = np.sign(offset) * np.maximum(np.abs(offset) - self.max_offset, 0.0)
         smooth = grid.smooth @ c
         n_fine = len(offset)
+        bends = self._curvature_excess(grid, c, r, r_u, r_z)
         value = (data + SLOPE_WEIGHT * float(slope_excess @ slope_excess) / n_fine
                  + OFFSET_WEIGHT * float(offset_excess @ offset_excess) / n_fine
+                 + CURVATURE_WEIGHT * sum(float(e @ e) for e, _ in bends) / n_fine
                  + LEVEL_WEIGHT * float(offset @ offset) / n_fine + self.smoothness * float(smooth @ smooth))
         out = {"value": value, "data": data, "max_tilt_deg": float(np.degrees(np.arctan(tan_tilt.max()))),
                "landing": land, "use": use}
@@ -308,6 +321,9 @@ class RayMap:
                          + sp.diags(r_z[over] / t) @ grid.d_z[over])
             matrix = matrix + (SLOPE_WEIGHT / n_fine) * (slope_jac.T @ slope_jac)
             gradient = gradient + (SLOPE_WEIGHT / n_fine) * (slope_jac.T @ slope_excess[over])
+        for excess, jac in bends:
+            matrix = matrix + (CURVATURE_WEIGHT / n_fine) * (jac.T @ jac)
+            gradient = gradient + (CURVATURE_WEIGHT / n_fine) * (jac.T @ excess)
         matrix = matrix + (LEVEL_WEIGHT / n_fine) * grid.gram
         gradient = gradient + (LEVEL_WEIGHT / n_fine) * (grid.value.T @ offset)
         far = np.flatnonzero(offset_excess != 0)
@@ -317,6 +333,30 @@ class RayMap:
         matrix = matrix + self.smoothness * (grid.smooth.T @ grid.smooth)
         gradient = gradient + self.smoothness * (grid.smooth.T @ smooth)
         out.update(matrix=matrix.tocsr(), gradient=gradient)
+        return out
+
+    def _curvature_excess(self, grid: _Grid, c: np.ndarray, r: np.ndarray, r_u: np.ndarray,
+                          r_z: np.ndarray) -> list[tuple[np.ndarray, sp.csr_matrix]]:
+        """[(excess (n_fine,) 1/mm, its Jacobian)] of the hollow curvature along u and along z
+        over the tool's limit (none without a tool).  Normal curvatures from the fundamental
+        forms as ``checks_geometry._concave_radius`` has them; the Jacobian keeps their
+        second-derivative terms, which dominate where a hollow is tight."""
+        if self.max_curvature is None:
+            return []
+        n_len = np.sqrt(r**2 + r_u**2 + (r * r_z) ** 2)
+        along_u = r_u**2 + r**2
+        along_z = r_z**2 + 1.0
+        k_u = ((grid.d_uu @ c - r) * r - 2 * r_u**2) / (n_len * along_u)
+        k_z = (grid.d_zz @ c) * r / (n_len * along_z)
+        out = []
+        for k, scale, second in ((k_u, r / (n_len * along_u), grid.d_uu), (k_z, r / (n_len * along_z), grid.d_zz)):
+            excess = np.maximum(k - self.max_curvature, 0.0)
+            over = np.flatnonzero(excess)
+            jac = sp.csr_matrix((len(k), c.size))
+            if len(over):
+                pick = sp.csr_matrix((np.ones(len(over)), (over, over)), shape=(len(k), len(k)))
+                jac = pick @ sp.diags(scale) @ second
+            out.append((excess, jac))
         return out
 
     def fit(self, heights: np.ndarray, goals: np.ndarray, iterations: int, log=None) -> tuple[np.ndarray, dict]:

@@ -67,11 +67,14 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
            inner_vertices: np.ndarray, inner_faces: np.ndarray, light_mm: np.ndarray,
            ior: float, grid: tuple[int, int], tessellation: int, iterations: int, photons: int,
            smoothness: float, max_offset_mm: float, max_tilt_deg: float, seed: int,
-           corrections: int = 3, dump_share: float = 0.1, log=print) -> tuple[np.ndarray, dict]:
+           corrections: int = 3, dump_share: float = 0.1, tool_radius_mm: float = 0.0,
+           log=print, on_pass=None) -> tuple[np.ndarray, dict]:
     """The transport-based heightmap on a ``grid`` = (nu, nv) node grid.
 
     targets: per wall (rows, cols) linear luminance.  ``iterations`` Levenberg-Marquardt
     steps per fit (twice that on the coarse grid), ``corrections`` trace-and-refit passes.
+    A ``tool_radius_mm`` (ball-end mill) bounds how tightly the surface may curve hollow.
+    ``on_pass(heights)`` sees the (nu, nv) surface after every fit (the benchmark times them).
     Returns ((nu, nv) mm offsets, figures).
     """
     nu, nv = grid
@@ -80,7 +83,8 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     ph = raymap.stratified_photons(inner_vertices, inner_faces, light_mm, ior, n_azimuth, n_elevation, seed)
     spans = sector_spans(walls, targets, light_mm)
     wall_of = sector_of(ph.emitted, walls, spans, light_mm, ior, max_tilt_deg)
-    fitter = raymap.RayMap(cyl, tessellation, ph, walls, wall_of, ior, max_tilt_deg, max_offset_mm, smoothness)
+    fitter = raymap.RayMap(cyl, tessellation, ph, walls, wall_of, ior, max_tilt_deg, max_offset_mm, smoothness,
+                           tool_radius_mm)
     coarse = (nu // 4, (nv - 1) // 4 + 1) if nu % 128 == 0 and (nv - 1) % 16 == 0 else grid
     plain = fitter.trace(np.zeros(coarse))
     lit = np.zeros(len(wall_of), bool)
@@ -90,16 +94,20 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
                "sectors_deg": {name: [round(lo, 2), round(hi, 2)] for name, (lo, hi) in spans.items()}}
     log(f"transport: {len(wall_of)} photons, {lit.sum()} reach a wall's sector through the side")
 
+    report = on_pass or (lambda h: None)
     heights = np.zeros(coarse)
     if coarse != grid:
         heights, fit = fitter.fit(heights, goals, 2 * iterations, log)
         heights = surface.refine(cyl, heights, 4)
+        report(heights)
     heights, fit = fitter.fit(heights, goals, iterations, log)
     figures["passes"].append(fit)
+    report(heights)
     for k in range(corrections):
         goals = landing_goals(fitter.trace(heights), wall_of, walls, targets, dump_share)
         heights, fit = fitter.fit(heights, goals, iterations, log)
         figures["passes"].append(fit)
+        report(heights)
         log(f"transport: correction {k + 1}/{corrections}: landing error {fit['rms_landing_error_mm']:.1f} mm rms")
     heights, max_tilt = limit_slopes(cyl, np.clip(heights, -max_offset_mm, max_offset_mm), max_tilt_deg)
     clipped = float(np.mean(np.abs(heights) > max_offset_mm))

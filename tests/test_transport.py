@@ -189,3 +189,36 @@ def test_slope_projection_meets_the_limit_and_keeps_gentle_parts(cyl, rng):
     # Far from the bump the ripples survive almost unchanged.
     far = np.abs(limited - heights)[40:60]
     assert far.max() < 0.1 * np.abs(heights[40:60]).max() + 0.05
+
+
+def test_a_ball_end_tool_radius_keeps_hollows_open(inner_layer, default_design, cyl):
+    """A tight dimple the goals ask for: with a 3 mm ball-end tool the fit opens it up."""
+    from lampfab import checks_geometry
+
+    walls = room.walls(default_design)
+    light = room.light_position(default_design)
+    dense = raymap.stratified_photons(*inner_layer, light, 1.5, 512, 256, seed=3)
+    wall_of = transport.sector_of(dense.emitted, walls, _nominal(walls), light, 1.5, 45.0)
+    nu, nv = 128, 33
+    dimple = np.zeros((nu, nv))
+    dimple[32, 16] = -2.0                                    # a hollow in front, a node wide
+
+    def fitter(tool):
+        return raymap.RayMap(cyl, 2, dense, walls, wall_of, 1.5, 45.0, 20.0, 1e-4, tool_radius_mm=tool)
+
+    land = fitter(0.0).trace(dimple)
+    goals = np.full((len(wall_of), 2), np.nan)
+    goals[land.index[land.ok]] = land.xy[land.ok]
+
+    def tightest(heights):
+        d = [surface.u_matrix(nu, 4 * nu, k) for k in range(3)]
+        e = [surface.open_matrix(nv, 4 * (nv - 1) + 1, k) / cyl.height_mm**k for k in range(3)]
+        part = [[a @ heights @ b.T for b in e] for a in d]     # part[i][j]: d^i/du^i d^j/dz^j
+        return float(checks_geometry._concave_radius(cyl.radius_mm + part[0][0], part[1][0], part[0][1],
+                                                     part[2][0], part[1][1], part[0][2]).min())
+
+    assert tightest(dimple) < 2.0
+    free, _ = fitter(0.0).fit(dimple, goals, 6)
+    milled, _ = fitter(3.0).fit(dimple, goals, 6)
+    assert tightest(free) < 2.0                              # the goals alone keep the hollow tight
+    assert tightest(milled) > 2.7                            # a 3 mm ball (almost) reaches its bottom
