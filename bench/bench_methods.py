@@ -58,7 +58,7 @@ def run_method(name, build, inner, targets, budgets, start_heights, opt, cls, el
     rows = []
     state = optimize.State(start_heights.copy(), 0, 0)
     runner = cls(build.cylinder, *inner, build.light, build.fab.ior, build.walls, build.targets(opt.sensor_px), opt,
-                 build.design.lens.max_offset_mm, build.fab.max_slope_deg)
+                 build.design.lens.max_offset_mm, build.fab.max_slope_deg, build.max_overhang_deg)
     spent = elapsed0
     last = None
     for budget in budgets:
@@ -126,13 +126,14 @@ def main() -> None:
                                       d.optimize.transport_rounds, d.optimize.transport_photons, d.optimize.smoothness,
                                       d.lens.max_offset_mm, build.fab.max_slope_deg, d.optimize.seed,
                                       corrections=d.optimize.transport_corrections,
-                                      dump_share=d.optimize.dump_share, log=lambda m: None,
+                                      dump_share=d.optimize.dump_share, max_overhang_deg=build.max_overhang_deg,
+                                      log=lambda m: None,
                                       on_pass=lambda h: passes.append((time.time() - t0, h.copy())))
         init_s = time.time() - t0
         splat_opt = dataclasses.replace(d.optimize, preview_every=10**9, checkpoint_every=10**9)
         probe = splat.SplatOptimizer(build.cylinder, *inner, build.light, build.fab.ior, build.walls,
                                      build.targets(splat_opt.sensor_px), splat_opt, d.lens.max_offset_mm,
-                                     build.fab.max_slope_deg)
+                                     build.fab.max_slope_deg, build.max_overhang_deg)
         pass_rows = []
         for k, (at, h) in enumerate(passes):
             row = dict(measure(build, inner, probe, h, targets), method=f"transport pass {k + 1}",

@@ -7,6 +7,8 @@ star.png      512x512  five-point star inside a ring
 portrait.png  512x384  synthetic greyscale "photo": a shaded face, continuous tones
 panorama.png  1536x512 360° panorama (centre column = front wall): a lit mountain range
               with a moon, wrapping around without a seam (make lamp PANORAMA=...)
+astronaut.png 256x256  a real photograph: scikit-image's "astronaut" sample (NASA, public
+              domain), in grey
 
 Silhouettes are drawn at 4x (ImageDraw shapes; the apple body as a smooth signed
 distance field) and reduced with area averaging (anti-aliased edges); the portrait is computed with numpy from soft-edged ellipses.
@@ -178,8 +180,17 @@ def panorama() -> Image.Image:
     return _down(im)
 
 
+def astronaut() -> Image.Image:
+    """A real photograph: scikit-image's "astronaut" sample (Eileen Collins, NASA; public
+    domain), in grey, reduced to 256 x 256."""
+    from skimage import data
+
+    return Image.fromarray(data.astronaut()).convert("L").reduce(2)
+
+
 def main() -> None:
-    for name, make in (("apple", apple), ("star", star), ("portrait", portrait), ("panorama", panorama)):
+    for name, make in (("apple", apple), ("star", star), ("portrait", portrait), ("panorama", panorama),
+                       ("astronaut", astronaut)):
         out = HERE / f"{name}.png"
         make().save(out, format="PNG", optimize=True)
         print(out)

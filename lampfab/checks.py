@@ -45,7 +45,7 @@ import numpy as np
 
 from . import tolerances
 from .checks_cnc import cavity_access, tool_axis, tool_axis_cells
-from .checks_geometry import Fields, compute_fields
+from .checks_geometry import SAMPLES, Fields, compute_fields
 from .checks_mesh import MeshReport, inspect_mesh
 from .profile import Fabrication
 from .surface import Cylinder
@@ -76,7 +76,7 @@ NAMES = ("min_wall", "max_slope", "tool_radius", "tool_axis", "overhang", "cavit
 def run_checks(cyl: Cylinder, heights: np.ndarray, inner_vertices: np.ndarray, inner_faces: np.ndarray,
                solid_vertices: np.ndarray, solid_faces: np.ndarray, fab: Fabrication,
                light_mm: np.ndarray, fields: Fields | None = None, mesh: MeshReport | None = None,
-               samples: tuple[int, int] = (1024, 256), self_intersections: bool = True) -> list[dict]:
+               samples: tuple[int, int] = SAMPLES, self_intersections: bool = True) -> list[dict]:
     """Run every check; a list of JSON-able dicts in ``NAMES`` order (see module docstring).
 
     heights (nu, nv) mm radial offsets; inner_vertices (n, 3) mm and inner_faces (m, 3)
@@ -229,8 +229,14 @@ def overhang_cells(f: Fields, fab: Fabrication) -> np.ndarray:
     return f.overhang > OVERHANG_DEG + _ANGLE_TOL
 
 
+def overhang_limit_deg(fab: Fabrication) -> float | None:
+    """How far the outer surface may face down past vertical (a print, built in layers), or
+    None (a milled or ground part has no overhangs)."""
+    return OVERHANG_DEG if fab.process == "sla" else None
+
+
 def _overhang(f: Fields, fab: Fabrication) -> dict:
-    if fab.process != "sla":
+    if overhang_limit_deg(fab) is None:
         return _result("overhang", None, None, "deg", True, applies=False,
                        note=f"process {fab.process!r} is not built in layers")
     i, j = np.unravel_index(int(np.argmax(f.overhang)), f.overhang.shape)
@@ -364,7 +370,7 @@ def _drain(m: MeshReport, sv, sf, light, fab: Fabrication) -> dict:
 def paint_checks(path_png, cyl: Cylinder, heights: np.ndarray, inner_vertices: np.ndarray,
                  inner_faces: np.ndarray, solid_vertices: np.ndarray, solid_faces: np.ndarray,
                  fab: Fabrication, light_mm: np.ndarray, results: list[dict],
-                 fields: Fields | None = None, samples: tuple[int, int] = (1024, 256)) -> None:
+                 fields: Fields | None = None, samples: tuple[int, int] = SAMPLES) -> None:
     """Write ``checks.png``: one panel per check, the unrolled outer surface (u across from
     0 to 360 deg, z up) coloured by wall thickness, failing cells red, the worst place
     ringed.  Arguments as ``run_checks``; ``results`` its output."""

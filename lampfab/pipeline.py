@@ -41,6 +41,12 @@ class Build:
                                 self.fab.sector_creases)
 
     @property
+    def max_overhang_deg(self) -> float | None:
+        from .checks import overhang_limit_deg
+
+        return overhang_limit_deg(self.fab)
+
+    @property
     def light(self) -> np.ndarray:
         return room.light_position(self.design)
 
@@ -302,13 +308,25 @@ def init(build: Build) -> dict:
         heights = np.zeros(grid)
         report.figure(method="cylinder")
     else:
+        from tqdm import tqdm
+
         iv, if_ = build.inner()
+        bar = tqdm(total=transport.fit_steps(grid, opt.transport_rounds, opt.transport_corrections), desc="init",
+                   unit="step", dynamic_ncols=True)
+
+        def step(figures):
+            bar.update()
+            bar.set_postfix(error=f"{figures['rms_landing_error_mm']:.1f} mm")
+
         heights, figs = transport.design(
             build.cylinder, build.walls, build.targets(opt.sensor_px), iv, if_, build.light,
             build.fab.ior, grid, opt.tessellation, opt.transport_rounds, opt.transport_photons,
             opt.smoothness, d.lens.max_offset_mm, build.fab.max_slope_deg, opt.seed,
             corrections=opt.transport_corrections, dump_share=opt.dump_share,
-            tool_radius_mm=build.fab.tool_radius_mm, log=_log)
+            tool_radius_mm=build.fab.tool_radius_mm, max_overhang_deg=build.max_overhang_deg, log=bar.write,
+            on_step=step)
+        bar.update(bar.total - bar.n)  # a fit that converged early skips its last steps
+        bar.close()
         report.figure(method="transport", **figs)
     artifacts.write_npz(build.path("init.npz"), heights=heights)
     report.write(build.path("init.json"))
@@ -339,7 +357,7 @@ def optimize(build: Build) -> dict:
 
     method = {"seed": opt_mod.SeedOptimizer, "splat": SplatOptimizer}[opt.method]
     seed_opt = method(build.cylinder, iv, if_, build.light, build.fab.ior, build.walls, targets, opt,
-                      d.lens.max_offset_mm, build.fab.max_slope_deg)
+                      d.lens.max_offset_mm, build.fab.max_slope_deg, build.max_overhang_deg)
     checkpoint = build.path("checkpoint.npz")
     for written in (checkpoint, build.path("heightmap.npz")):
         artifacts.remove_stale_temps(written)

@@ -50,7 +50,7 @@ LEVEL_WEIGHT = 1e-2
 # A ball-end tool of radius R reaches the bottom of a hollow only where the surface curves
 # no tighter than 1/R; the fit aims this much wider, since it charges the curvature along
 # u and z (the check takes the largest principal curvature, which can lie between them).
-CURVATURE_MARGIN = 1.25
+CURVATURE_MARGIN = 1.5
 # Like the slope term: a curvature over the limit by 0.01 / mm on a tenth of the lens
 # costs like a landing error of ~30 mm.
 CURVATURE_WEIGHT = 1e8
@@ -229,7 +229,7 @@ class RayMap:
 
     def __init__(self, cyl: surface.Cylinder, tessellation: int, photons: Photons, walls: list[Wall],
                  wall_of: np.ndarray, ior: float, max_tilt_deg: float, max_offset_mm: float,
-                 smoothness: float, tool_radius_mm: float = 0.0):
+                 smoothness: float, tool_radius_mm: float = 0.0, max_overhang_deg: float | None = None):
         self.cyl, self.tessellation, self.photons = cyl, tessellation, photons
         self.frames = WallFrames(walls)
         self.wall_of = wall_of
@@ -238,6 +238,7 @@ class RayMap:
         self.max_offset = max_offset_mm
         self.smoothness = smoothness
         self.max_curvature = 1.0 / (CURVATURE_MARGIN * tool_radius_mm) if tool_radius_mm > 0 else None
+        self.sin_overhang = None if max_overhang_deg is None else np.sin(np.radians(max_overhang_deg - SLOPE_MARGIN_DEG))
         self._grids: dict = {}
 
     def grid(self, shape: tuple[int, int]) -> _Grid:
@@ -294,10 +295,10 @@ class RayMap:
         offset_excess = np.sign(offset) * np.maximum(np.abs(offset) - self.max_offset, 0.0)
         smooth = grid.smooth @ c
         n_fine = len(offset)
-        bends = self._curvature_excess(grid, c, r, r_u, r_z)
+        limits = self._curvature_excess(grid, c, r, r_u, r_z) + self._overhang_excess(grid, r, r_u, r_z)
         value = (data + SLOPE_WEIGHT * float(slope_excess @ slope_excess) / n_fine
                  + OFFSET_WEIGHT * float(offset_excess @ offset_excess) / n_fine
-                 + CURVATURE_WEIGHT * sum(float(e @ e) for e, _ in bends) / n_fine
+                 + CURVATURE_WEIGHT * sum(float(e @ e) for e, _ in limits) / n_fine
                  + LEVEL_WEIGHT * float(offset @ offset) / n_fine + self.smoothness * float(smooth @ smooth))
         out = {"value": value, "data": data, "max_tilt_deg": float(np.degrees(np.arctan(tan_tilt.max()))),
                "landing": land, "use": use}
@@ -321,7 +322,7 @@ class RayMap:
                          + sp.diags(r_z[over] / t) @ grid.d_z[over])
             matrix = matrix + (SLOPE_WEIGHT / n_fine) * (slope_jac.T @ slope_jac)
             gradient = gradient + (SLOPE_WEIGHT / n_fine) * (slope_jac.T @ slope_excess[over])
-        for excess, jac in bends:
+        for excess, jac in limits:
             matrix = matrix + (CURVATURE_WEIGHT / n_fine) * (jac.T @ jac)
             gradient = gradient + (CURVATURE_WEIGHT / n_fine) * (jac.T @ excess)
         matrix = matrix + (LEVEL_WEIGHT / n_fine) * grid.gram
@@ -359,14 +360,32 @@ class RayMap:
             out.append((excess, jac))
         return out
 
-    def fit(self, heights: np.ndarray, goals: np.ndarray, iterations: int, log=None) -> tuple[np.ndarray, dict]:
+    def _overhang_excess(self, grid: _Grid, r: np.ndarray, r_u: np.ndarray,
+                         r_z: np.ndarray) -> list[tuple[np.ndarray, sp.csr_matrix]]:
+        """[(excess, its Jacobian)] of how far the surface faces down past the print's
+        overhang limit: sin(overhang) = -n_z = r r_z / |X_u x X_z| (none without a limit).
+        The Jacobian keeps the r_z term, which dominates."""
+        if self.sin_overhang is None:
+            return []
+        n_len = np.sqrt(r**2 + r_u**2 + (r * r_z) ** 2)
+        excess = np.maximum(r * r_z / n_len - self.sin_overhang, 0.0)
+        over = np.flatnonzero(excess)
+        jac = sp.csr_matrix((len(r), grid.d_z.shape[1]))
+        if len(over):
+            pick = sp.csr_matrix((np.ones(len(over)), (over, over)), shape=(len(r), len(r)))
+            jac = pick @ sp.diags(r / n_len) @ grid.d_z
+        return [(excess, jac)]
+
+    def fit(self, heights: np.ndarray, goals: np.ndarray, iterations: int, on_step=None) -> tuple[np.ndarray, dict]:
         """Levenberg-Marquardt from ``heights`` (nu, nv) mm towards ``goals`` (n_photons, 2)
-        mm (NaN: no goal).  Returns (heights, figures of the last iterate)."""
+        mm (NaN: no goal); ``on_step(figures)`` after each step taken.  Returns (heights,
+        figures of the last iterate)."""
         grid = self.grid(heights.shape)
         coef = grid.coef(heights)
         current = self._terms(grid, coef, goals, True)
         damping = DAMPING_START
-        for it in range(iterations):
+        taken = 0
+        for _ in range(iterations):
             diagonal = current["matrix"].diagonal() + 1e-12
             while damping <= DAMPING_MAX:
                 step = _solve(current["matrix"] + damping * sp.diags(diagonal), -current["gradient"])
@@ -375,15 +394,19 @@ class RayMap:
                 if trial["value"] < current["value"]:
                     coef, current = coef + step.reshape(coef.shape), trial
                     damping = max(damping / DAMPING_DOWN, 1e-6)
+                    taken += 1
                     break
                 damping *= DAMPING_UP
             else:
                 break  # no step lowers the objective: converged as far as it goes
-            if log:
-                log(f"transport: fit {heights.shape[0]}x{heights.shape[1]} step {it + 1}: landing error "
-                    f"{np.sqrt(current['data']):.1f} mm rms, max tilt {current['max_tilt_deg']:.1f}°")
-        figures = {"rms_landing_error_mm": float(np.sqrt(current["data"])), "max_tilt_deg": current["max_tilt_deg"]}
-        return grid.nodes(coef), figures
+            if on_step:
+                on_step(_figures(current, taken))
+        return grid.nodes(coef), _figures(current, taken)
+
+
+def _figures(terms: dict, steps_taken: int) -> dict:
+    return {"rms_landing_error_mm": float(np.sqrt(terms["data"])), "max_tilt_deg": terms["max_tilt_deg"],
+            "steps_taken": steps_taken}
 
 
 def _solve(matrix: sp.csr_matrix, rhs: np.ndarray) -> np.ndarray:

@@ -278,7 +278,8 @@ def slopes_deg(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int) -> tuple[np
     """Angle between the surface normal and the radial direction, from the spline's
     exact derivatives, and its part along z.
 
-    Returns ((mu, mv) float64 deg total tilt, (mu, mv) float64 deg tilt along z).
+    Returns ((mu, mv) float64 deg total tilt, (mu, mv) float64 deg tilt along z: positive
+    where the radius grows upward, i.e. the surface faces down).
     """
     nu, nv = heights.shape
     pz = open_matrix(nv, mv)
@@ -287,7 +288,7 @@ def slopes_deg(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int) -> tuple[np
     r_u = u_matrix(nu, mu, 1, cyl.creased) @ heights @ pz.T
     r_z = pu @ heights @ open_matrix(nv, mv, 1).T / cyl.height_mm
     tilt = np.degrees(np.arctan(np.hypot(r_u / r, r_z)))
-    return tilt, np.degrees(np.arctan(np.abs(r_z)))
+    return tilt, np.degrees(np.arctan(r_z))
 
 
 def slope_penalty(cyl: Cylinder, heights: np.ndarray, max_tilt_deg: float,

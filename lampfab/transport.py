@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from scipy.ndimage import map_coordinates
 from scipy.sparse.linalg import spsolve
 
-from . import ot, raymap, surface
+from . import checks_geometry, ot, raymap, surface
 from .room import SECTOR_WIDTH_DEG, Wall
 
 # The slope projection aims this far under the limit: the fabrication check samples the
@@ -68,12 +68,15 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
            ior: float, grid: tuple[int, int], tessellation: int, iterations: int, photons: int,
            smoothness: float, max_offset_mm: float, max_tilt_deg: float, seed: int,
            corrections: int = 3, dump_share: float = 0.1, tool_radius_mm: float = 0.0,
-           log=print, on_pass=None) -> tuple[np.ndarray, dict]:
+           max_overhang_deg: float | None = None, log=print, on_step=None,
+           on_pass=None) -> tuple[np.ndarray, dict]:
     """The transport-based heightmap on a ``grid`` = (nu, nv) node grid.
 
     targets: per wall (rows, cols) linear luminance.  ``iterations`` Levenberg-Marquardt
     steps per fit (twice that on the coarse grid), ``corrections`` trace-and-refit passes.
-    A ``tool_radius_mm`` (ball-end mill) bounds how tightly the surface may curve hollow.
+    A ``tool_radius_mm`` (ball-end mill) bounds how tightly the surface may curve hollow,
+    ``max_overhang_deg`` (a print) how far it may face down past vertical.
+    ``on_step(figures)`` follows every fitting step (``fit_steps`` of them: a progress bar),
     ``on_pass(heights)`` sees the (nu, nv) surface after every fit (the benchmark times them).
     Returns ((nu, nv) mm offsets, figures).
     """
@@ -84,8 +87,8 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     spans = sector_spans(walls, targets, light_mm)
     wall_of = sector_of(ph.emitted, walls, spans, light_mm, ior, max_tilt_deg)
     fitter = raymap.RayMap(cyl, tessellation, ph, walls, wall_of, ior, max_tilt_deg, max_offset_mm, smoothness,
-                           tool_radius_mm)
-    coarse = (nu // 4, (nv - 1) // 4 + 1) if nu % 128 == 0 and (nv - 1) % 16 == 0 else grid
+                           tool_radius_mm, max_overhang_deg)
+    coarse = coarse_grid(grid)
     plain = fitter.trace(np.zeros(coarse))
     lit = np.zeros(len(wall_of), bool)
     lit[plain.index[plain.ok]] = True
@@ -97,24 +100,37 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     report = on_pass or (lambda h: None)
     heights = np.zeros(coarse)
     if coarse != grid:
-        heights, fit = fitter.fit(heights, goals, 2 * iterations, log)
+        heights, fit = fitter.fit(heights, goals, 2 * iterations, on_step)
         heights = surface.refine(cyl, heights, 4)
         report(heights)
-    heights, fit = fitter.fit(heights, goals, iterations, log)
+    heights, fit = fitter.fit(heights, goals, iterations, on_step)
     figures["passes"].append(fit)
     report(heights)
     for k in range(corrections):
         goals = landing_goals(fitter.trace(heights), wall_of, walls, targets, dump_share)
-        heights, fit = fitter.fit(heights, goals, iterations, log)
+        heights, fit = fitter.fit(heights, goals, iterations, on_step)
         figures["passes"].append(fit)
         report(heights)
         log(f"transport: correction {k + 1}/{corrections}: landing error {fit['rms_landing_error_mm']:.1f} mm rms")
-    heights, max_tilt = limit_slopes(cyl, np.clip(heights, -max_offset_mm, max_offset_mm), max_tilt_deg)
+    heights, max_tilt = limit_slopes(cyl, np.clip(heights, -max_offset_mm, max_offset_mm), max_tilt_deg,
+                                     max_overhang_deg)
     clipped = float(np.mean(np.abs(heights) > max_offset_mm))
     heights = np.clip(heights, -max_offset_mm, max_offset_mm)
     figures.update(offset_min_mm=float(heights.min()), offset_max_mm=float(heights.max()),
                    clipped_fraction=clipped, grid=list(grid), max_tilt_deg=max_tilt, creased=cyl.creased)
     return heights, figures
+
+
+def coarse_grid(grid: tuple[int, int]) -> tuple[int, int]:
+    """The grid the first fit runs on: four times coarser where that still leaves every
+    sector 8 nodes around and the height 5 nodes, else the profile's."""
+    nu, nv = grid
+    return (nu // 4, (nv - 1) // 4 + 1) if nu % 128 == 0 and (nv - 1) % 16 == 0 else grid
+
+
+def fit_steps(grid: tuple[int, int], iterations: int, corrections: int) -> int:
+    """How many fitting steps ``design`` takes (its progress bar's length)."""
+    return (2 * iterations if coarse_grid(grid) != grid else 0) + iterations * (1 + corrections)
 
 
 def sector_spans(walls: list[Wall], targets: list[np.ndarray], light_mm: np.ndarray) -> dict[str, tuple[float, float]]:
@@ -333,26 +349,36 @@ def snell_normals(d_in: np.ndarray, d_out: np.ndarray, ior: float) -> np.ndarray
 
 
 def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float,
-                 passes: int = 30) -> tuple[np.ndarray, float]:
+                 max_overhang_deg: float | None = None, passes: int = 30) -> tuple[np.ndarray, float]:
     """The surface closest to ``heights`` whose spline tilts at most ``max_tilt_deg``
-    against the radial direction, measured as finely as the fabrication check does.
+    against the radial direction and, with ``max_overhang_deg`` (a print), faces down at
+    most that far past vertical, measured as finely as the fabrication check does.
 
     Node-to-node slopes steeper than a clamp are cut back to it, and only that
     correction is integrated (least squares), so detail elsewhere is kept.  Where the
     spline still overshoots between nodes (or at the caps, where its end condition
     bends it), the clamp of the edges around that place tightens by the overshoot (at
-    least half a degree) per pass; elsewhere it stays just under the limit.
+    least half a degree) per pass; elsewhere it stays just under the limit.  The overhang
+    bounds how fast the radius may grow upward (atan(dr/dz), never less than the overhang).
     Returns (heights (nu, nv) mm, max tilt deg).
     """
     from scipy.ndimage import maximum_filter
 
     nu, nv = heights.shape
-    k = 4
+    # As finely as the check samples it (a creased spline can steepen within the last cell
+    # before a seam), and at least 4 samples per cell.
+    k = max(4, -(-checks_geometry.SAMPLES[0] // nu))
     fine = surface.fine_shape(nu, nv, k)
-    # Aim a little under the limit: the check samples the spline at other points.
+    # Aim a little under the limits: the check samples the spline at other points.
     max_tilt_deg -= SLOPE_MARGIN_DEG
-    tilt = surface.slopes_deg(cyl, heights, *fine)[0]
-    if tilt.max() <= max_tilt_deg:
+    max_rise_deg = 90.0 if max_overhang_deg is None else max_overhang_deg - SLOPE_MARGIN_DEG
+
+    def overshoot():
+        tilt, rise = surface.slopes_deg(cyl, heights, *fine)
+        return tilt, tilt - max_tilt_deg, rise - max_rise_deg
+
+    tilt, over_tilt, over_rise = overshoot()
+    if over_tilt.max() <= 0 and over_rise.max() <= 0:
         return heights, float(tilt.max())
     du = 2 * np.pi / nu
     dz = cyl.height_mm / (nv - 1)
@@ -360,11 +386,20 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     a = np.concatenate([idx.ravel(), idx[:, 1:].ravel()])
     b = np.concatenate([np.roll(idx, 1, axis=0).ravel(), idx[:, :-1].ravel()])
     m = len(a)
+    along_z = np.arange(m) >= nu * nv
     diff = sp.csr_matrix((np.concatenate([np.ones(m), -np.ones(m)]),
                           (np.concatenate([np.arange(m)] * 2), np.concatenate([a, b]))), shape=(m, nu * nv))
     normal_eq = (diff.T @ diff + sp.identity(nu * nv) * 1e-9).tocsc()
     scale = np.concatenate([np.full(nu * nv, du), np.full(nu * (nv - 1), dz)])
     clamp = np.full(m, max_tilt_deg - 0.5)
+    rise_clamp = np.where(along_z, min(max_rise_deg, max_tilt_deg) - 0.5, 89.0)
+
+    def tighten(clamps, over_field):
+        # How far each node's neighbourhood (one cell around) overshoots its limit.
+        over = maximum_filter(over_field, size=2 * k + 1, mode=("wrap", "nearest"))[::k, ::k].ravel()
+        over_edge = np.maximum(over[a], over[b])
+        clamps[over_edge > 0] -= np.maximum(0.5, over_edge[over_edge > 0])
+
     for _ in range(passes):
         # Edge slopes as tangents: along u, d ln r / du = (dr/du) / r; along z, dr/dz.
         rho = np.log(cyl.radius_mm + heights)
@@ -372,16 +407,16 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
         r_edge = np.concatenate([np.full(nu * nv, 1.0), (cyl.radius_mm + heights[:, 1:]).ravel()])
         tangent = edge / scale * r_edge
         limit = np.tan(np.radians(clamp))
-        excess = np.sign(tangent) * np.maximum(np.abs(tangent) - limit, 0.0)
+        upper = np.minimum(limit, np.tan(np.radians(rise_clamp)))
+        excess = np.maximum(tangent - upper, 0.0) + np.minimum(tangent + limit, 0.0)
         delta = spsolve(normal_eq, diff.T @ (-excess / r_edge * scale))
         heights = (cyl.radius_mm + heights) * np.exp(delta.reshape(nu, nv) - delta.mean()) - cyl.radius_mm
-        tilt = surface.slopes_deg(cyl, heights, *fine)[0]
-        if tilt.max() <= max_tilt_deg:
+        tilt, over_tilt, over_rise = overshoot()
+        if over_tilt.max() <= 0 and over_rise.max() <= 0:
             break
-        # How far each node's neighbourhood (one cell around) overshoots the limit.
-        over = (maximum_filter(tilt, size=2 * k + 1, mode=("wrap", "nearest"))[::k, ::k] - max_tilt_deg).ravel()
-        over_edge = np.maximum(over[a], over[b])
-        clamp[over_edge > 0] -= np.maximum(0.5, over_edge[over_edge > 0])
+        tighten(clamp, over_tilt)
+        tighten(rise_clamp, np.where(np.isfinite(over_rise), over_rise, -1.0))
+        rise_clamp[~along_z] = 89.0
     return heights, float(tilt.max())
 
 

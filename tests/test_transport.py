@@ -222,3 +222,17 @@ def test_a_ball_end_tool_radius_keeps_hollows_open(inner_layer, default_design, 
     milled, _ = fitter(3.0).fit(dimple, goals, 6)
     assert tightest(free) < 2.0                              # the goals alone keep the hollow tight
     assert tightest(milled) > 2.7                            # a 3 mm ball (almost) reaches its bottom
+
+
+def test_a_print_may_face_up_steeply_but_not_down(cyl):
+    """Overhang: the radius may shrink upward at 55° (up-facing) but not grow at 55°."""
+    z = cyl.node_z(17)
+    ramp = np.tan(np.radians(55.0)) * np.minimum(z - 30.0, 10.0).clip(0.0)       # rises 10 mm above z 30
+    heights = np.tile(np.concatenate([[0.0], ramp[1:]])[None, :], (64, 1)) - 5.0
+    fine = surface.fine_shape(64, 17, 16)
+    for sign in (+1, -1):
+        limited, _ = transport.limit_slopes(cyl, sign * heights, 60.0, max_overhang_deg=45.0)
+        tilt, rise = surface.slopes_deg(cyl, limited, *fine)
+        assert tilt.max() <= 60.0 and rise.max() <= 45.0 + 1e-6
+        if sign < 0:                                        # facing up: the 55° flank stays
+            assert -rise.min() > 50.0
