@@ -349,7 +349,7 @@ def snell_normals(d_in: np.ndarray, d_out: np.ndarray, ior: float) -> np.ndarray
 
 
 def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float,
-                 max_overhang_deg: float | None = None, passes: int = 30) -> tuple[np.ndarray, float]:
+                 max_overhang_deg: float | None = None, passes: int = 60) -> tuple[np.ndarray, float]:
     """The surface closest to ``heights`` whose spline tilts at most ``max_tilt_deg``
     against the radial direction and, with ``max_overhang_deg`` (a print), faces down at
     most that far past vertical, measured as finely as the fabrication check does.

@@ -172,7 +172,7 @@ PROFILE_CASES = {
     "inner layer crosses the outer layer": (dict(inner=lambda: _sphere(30, [0, 0, 45])),
                                             ["reaches radius", "outer layer may come in"]),
     "more memory than there is": (dict(replace=(("grid_u = 32", "grid_u = 8192"), ("grid_v = 9", "grid_v = 4096"),
-                                                ("tessellation = 2", "tessellation = 16"))),
+                                                ("tessellation = 4", "tessellation = 16"))),
                                   ["needs about", "GB of memory", "grid_u", "tessellation", "is free"]),
 }
 
@@ -226,7 +226,7 @@ def test_memory_check_names_the_keys(monkeypatch):
     design = profile.load_design(str(TINY))
     monkeypatch.setattr(resources, "available_bytes", lambda: 1e6)
     with pytest.raises(LampfabError, match=r"optimize: needs about .* GB of memory \(20,000 photons from "
-                                           r"\[optimize\] splat_photons and 1,088 surface vertices"):
+                                           r"\[optimize\] splat_photons and 4,224 surface vertices"):
         resources.check_memory("optimize", design)
     monkeypatch.setattr(resources, "available_bytes", lambda: 64e9)
     resources.check_memory("optimize", design)
