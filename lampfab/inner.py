@@ -2,8 +2,8 @@
 
 Blender exports arrive as triangle soups split along UV and normal seams; they are
 welded (``tolerances.WELD_MM``), repaired where that is safe (duplicate and degenerate
-faces, winding) and refused with a reason where it is not (holes, not enclosing the
-light, crossing the outer layer).
+faces, winding) and refused with a reason where it is not (holes, faces crossing each
+other (pymeshlab), not enclosing the light, crossing the outer layer).
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from . import tolerances
+from .checks_mesh import inspect_mesh
 from .errors import LampfabError
 
 DEFAULT_INNER = Path(__file__).resolve().parent / "data" / "inner_default.obj"
@@ -77,6 +78,12 @@ def load_inner(path: str | Path | None, scale: float, light_mm: np.ndarray,
                            f"at {tolerances.WELD_MM} mm); close the holes in Blender")
     if mesh.body_count != 1:
         raise LampfabError(f"{where}: has {mesh.body_count} separate parts; expected one closed shell")
+    crossing = inspect_mesh(mesh.vertices, mesh.faces)
+    if crossing.self_intersecting_faces:
+        place = np.round(crossing.places["self_intersecting_faces"], 2).tolist()
+        raise LampfabError(f"{where}: {crossing.self_intersecting_faces} faces cross other faces (near {place} mm); "
+                           f"a lens cannot be made around a surface that passes through itself: fix it in Blender "
+                           f"(Select > Select All by Trait > Interior Faces, or Mesh > Clean Up)")
     trimesh.repair.fix_normals(mesh)
     if mesh.volume < 0:
         mesh.invert()

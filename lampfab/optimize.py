@@ -205,8 +205,8 @@ class Optimizer:
                 grad = surface.sample_adjoint(self.cyl, grad_full + opt.slope_weight * penalty_grad, *grid)
                 fault = _fault(loss, grad, best.get(key, math.inf))
                 if fault is None:  # on a fault the state is replaced, moments included
-                    heights = self.makeable(state.heights + surface.sample(self.cyl, self.step_delta(state, grad), *grids[-1]),
-                                            STEP_SLACK_DEG)
+                    delta = surface.sample(self.cyl, self.step_delta(state, grad), *grids[-1])
+                    heights = self.makeable(state.heights + delta, STEP_SLACK_DEG)
                     fault = None if np.all(np.isfinite(heights)) else "the new heights are not finite"
                 if fault is not None:
                     fallbacks += 1

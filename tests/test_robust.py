@@ -112,6 +112,16 @@ def _open_sphere():
     return trimesh.Trimesh(s.vertices + [0, 0, 45], s.faces[:-3])
 
 
+def _crossed_sphere():
+    """A closed sphere with one vertex pushed through the far side: it passes through itself."""
+    sphere = _sphere(8, [0, 0, 45])
+    vertices = sphere.vertices.copy()
+    vertices[0] += 2.2 * ([0, 0, 45] - vertices[0])
+    import trimesh
+
+    return trimesh.Trimesh(vertices, sphere.faces, process=False)
+
+
 def _sphere(radius, centre):
     import trimesh
 
@@ -169,6 +179,7 @@ PROFILE_CASES = {
                                                                               "outer_radius_mm = 60.0"),)),
                               ["wall_distance_mm", "walls behind or inside the lamp"]),
     "inner layer not closed": (dict(inner=_open_sphere), ["inner layer", "not closed", "open edges"]),
+    "inner layer crosses itself": (dict(inner=_crossed_sphere), ["inner layer", "faces cross other faces", "Blender"]),
     "inner layer crosses the outer layer": (dict(inner=lambda: _sphere(30, [0, 0, 45])),
                                             ["reaches radius", "outer layer may come in"]),
     "more memory than there is": (dict(replace=(("grid_u = 32", "grid_u = 8192"), ("grid_v = 9", "grid_v = 4096"),
