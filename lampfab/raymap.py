@@ -94,6 +94,17 @@ def fresnel_transmission(cos_i: np.ndarray, eta: float) -> tuple[np.ndarray, np.
     return np.where(sin2_t >= 1.0, 0.0, 1.0 - 0.5 * (rs + rp)), cos_t
 
 
+def refract(direction: np.ndarray, normal: np.ndarray, eta: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Snell's law: unit directions (k, 3) through interfaces whose unit normals (k, 3)
+    point the way the light goes, eta = n_after / n_before.  Returns (refracted unit
+    directions, cos of incidence, True where the light is totally reflected instead)."""
+    cos_i = np.einsum("ij,ij->i", direction, normal)
+    sin2_t = (1.0 - cos_i**2) / eta**2
+    cos_t = np.sqrt(np.maximum(1.0 - sin2_t, 0.0))
+    out = direction / eta + (cos_t - cos_i / eta)[:, None] * normal
+    return out / np.linalg.norm(out, axis=1, keepdims=True), cos_i, sin2_t >= 1.0
+
+
 def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, light_mm: np.ndarray,
                        ior: float, n_azimuth: int, n_elevation: int, seed: int) -> Photons:
     """One photon per cell of an (azimuth, sin elevation) grid, jittered inside its cell,
@@ -118,11 +129,10 @@ def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, ligh
     tri = inner_vertices[inner_faces[prim]]
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    cos_i = np.einsum("ij,ij->i", emitted, normal)
-    along = np.where(cos_i[:, None] >= 0, normal, -normal)  # the facet normal on the glass side
-    transmitted, cos_t = fresnel_transmission(np.abs(cos_i), ior)
-    inside = emitted / ior + (cos_t - np.abs(cos_i) / ior)[:, None] * along
-    inside /= np.linalg.norm(inside, axis=1, keepdims=True)
+    facing = np.einsum("ij,ij->i", emitted, normal) >= 0
+    along = np.where(facing[:, None], normal, -normal)  # the facet normal on the glass side
+    inside, cos_i, _ = refract(emitted, along, ior)
+    transmitted, _ = fresnel_transmission(cos_i, ior)
     origin = start + t[:, None] * emitted + 1e-4 * inside
     return Photons(origin, inside, emitted, transmitted / len(valid), np.stack([a, s], axis=1),
                    n_azimuth, n_elevation)
@@ -150,18 +160,14 @@ def landing(origin: np.ndarray, direction: np.ndarray, v0: np.ndarray, v1: np.nd
     t = np.einsum("ij,ij->i", v0 - origin, normal) / np.einsum("ij,ij->i", direction, normal)
     p = origin + t[:, None] * direction
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    cos_i = np.einsum("ij,ij->i", direction, normal)
-    sin2_t = (1.0 - cos_i**2) * ior**2
-    cos_t = np.sqrt(np.maximum(1.0 - sin2_t, 0.0))
-    out = direction * ior - (cos_i * ior - cos_t)[:, None] * normal
-    out /= np.linalg.norm(out, axis=1, keepdims=True)
+    out, cos_i, reflected = refract(direction, normal, 1.0 / ior)
     n_w = frames.normal[wall]
     denom = np.einsum("ij,ij->i", out, n_w)
     with np.errstate(divide="ignore", invalid="ignore"):
         t_w = np.einsum("ij,ij->i", frames.origin[wall] - p, n_w) / denom
     rel = p + t_w[:, None] * out - frames.origin[wall]
     xy = np.stack([np.einsum("ij,ij->i", rel, frames.right[wall]), np.einsum("ij,ij->i", rel, frames.down[wall])], 1)
-    ok = (sin2_t < 1.0) & (cos_i > 0) & (denom < 0) & (t_w > 0) & np.isfinite(xy).all(axis=1)
+    ok = ~reflected & (cos_i > 0) & (denom < 0) & (t_w > 0) & np.isfinite(xy).all(axis=1)
     return xy, ok
 
 

@@ -276,10 +276,10 @@ def _signed_area(points: np.ndarray, normal: np.ndarray) -> float:
 
 # ---------------------------------------------------------------- the solid
 
-def build_step_solid(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: np.ndarray,
-                     inner_faces: np.ndarray, mount_radius_mm: float, samples_u: int,
-                     samples_v: int) -> tuple[object, dict]:
-    """The lens as an OCCT solid (TopoDS_Solid) and figures about it.
+def build_step_solid(cyl: surface.Cylinder, inner_vertices: np.ndarray, inner_faces: np.ndarray,
+                     mount_radius_mm: float, fitted: dict) -> tuple[object, dict]:
+    """The lens as an OCCT solid (TopoDS_Solid) around the outer B-spline ``fitted``
+    (``fit_samples``) and figures about it.
 
     Arguments as ``write_step``.  Returns (solid, dict(fit_s, build_s, poles_u, poles_v,
     faces, deviation dict, bore dict)).
@@ -294,10 +294,7 @@ def build_step_solid(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
     f = np.asarray(inner_faces, np.int64)
     bore = plan_bore(v, f, mount_radius_mm)
     height = cyl.height_mm
-    t0 = time.perf_counter()
-    fit = bspline_poles(cyl, heights, samples_u, samples_v)
-    occ = _occ_surface(fit)
-    t_fit = time.perf_counter() - t0
+    fit, occ = fitted["fit"], fitted["surface"]
 
     t0 = time.perf_counter()
     u_first, u_last = float(fit["u_knots"][0]), float(fit["u_knots"][-1])
@@ -383,11 +380,8 @@ def build_step_solid(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
     builder.MakeSolid(solid)
     builder.Add(solid, shell)
     t_build = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    dev = deviation(cyl, heights, occ, samples_u, samples_v)
-    t_dev = time.perf_counter() - t0
-    return solid, {"fit_s": t_fit, "build_s": t_build, "deviation_s": t_dev, "poles_u": int(fit["poles"].shape[0]),
-                   "poles_v": int(fit["poles"].shape[1]), "faces": len(faces), "deviation": dev,
+    return solid, {"fit_s": fitted["seconds"], "build_s": t_build, "poles_u": int(fit["poles"].shape[0]),
+                   "poles_v": int(fit["poles"].shape[1]), "faces": len(faces), "deviation": fitted["deviation"],
                    "bore": {"radius_mm": bore.radius_mm, "z_floor_mm": bore.z_floor_mm}}
 
 
@@ -461,15 +455,14 @@ def write_step(path, cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
     must match it within ``tolerances.VOLUME_REL``.
 
     Returns dict(valid, closed, n_solids, volume_mm3, faces, poles_u, poles_v,
-    deviation_mm (radial, between samples), deviation {...}, file_bytes, fit_s, build_s,
-    check_s, write_s).  Raises GeometryError if the solid is invalid, open, or has a
+    deviation_mm (radial, between samples), deviation {...}, file_bytes, fit_s (the fit
+    and its deviation, every grid tried), build_s, check_s, write_s).  Raises GeometryError if the solid is invalid, open, or has a
     non-positive or unexpected volume.
     """
     from . import tolerances
 
-    samples_u, samples_v = fit_samples(cyl, heights, samples_u, samples_v)
-    solid, info = build_step_solid(cyl, heights, inner_vertices, inner_faces, mount_radius_mm,
-                                   samples_u, samples_v)
+    solid, info = build_step_solid(cyl, inner_vertices, inner_faces, mount_radius_mm,
+                                   fit_samples(cyl, heights, samples_u, samples_v))
     t0 = time.perf_counter()
     figs = shape_figures(solid)
     info["check_s"] = time.perf_counter() - t0
@@ -487,24 +480,31 @@ def write_step(path, cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
     return info
 
 
-def fit_samples(cyl: surface.Cylinder, heights: np.ndarray, max_u: int, max_v: int) -> tuple[int, int]:
-    """The coarsest interpolation grid, from the heightmap's own nodes doubling up to
-    (max_u, max_v), whose B-spline stays within ``tolerances.BSPLINE_DEVIATION_MM`` of the
-    heightmap surface between its samples: a CAM program handles fewer poles faster.
-    Raises GeometryError if even the finest allowed grid does not."""
+def fit_samples(cyl: surface.Cylinder, heights: np.ndarray, max_u: int, max_v: int) -> dict:
+    """The B-spline through the coarsest interpolation grid, from the heightmap's own nodes
+    doubling up to (max_u, max_v), that stays within ``tolerances.BSPLINE_DEVIATION_MM`` of
+    the heightmap surface between its samples: a CAM program handles fewer poles faster.
+
+    Returns dict(samples (mu, mv), fit (``bspline_poles``), surface (OCCT), deviation
+    (``deviation``), seconds).  Raises GeometryError if even the finest allowed grid does
+    not stay within it."""
     from .tolerances import BSPLINE_DEVIATION_MM
 
+    t0 = time.perf_counter()
     nu, nv = heights.shape
     mu, mv = nu, nv
     while True:
         mu_, mv_ = min(mu, max_u), min(mv, max_v)
-        radial = deviation(cyl, heights, _occ_surface(bspline_poles(cyl, heights, mu_, mv_)), mu_, mv_)["radial_mm"]
-        if radial <= BSPLINE_DEVIATION_MM:
-            return mu_, mv_
+        fit = bspline_poles(cyl, heights, mu_, mv_)
+        occ = _occ_surface(fit)
+        dev = deviation(cyl, heights, occ, mu_, mv_)
+        if dev["radial_mm"] <= BSPLINE_DEVIATION_MM:
+            return {"samples": (mu_, mv_), "fit": fit, "surface": occ, "deviation": dev,
+                    "seconds": time.perf_counter() - t0}
         if (mu_, mv_) == (max_u, max_v) or (mu >= max_u and mv >= max_v):
-            raise GeometryError(f"STEP: the B-spline through {mu_} x {mv_} samples deviates {radial * 1000:.2f} µm "
-                                f"from the heightmap surface (limit {BSPLINE_DEVIATION_MM * 1000:g} µm); raise "
-                                f"[export] step_samples_u / step_samples_v")
+            raise GeometryError(f"STEP: the B-spline through {mu_} x {mv_} samples deviates "
+                                f"{dev['radial_mm'] * 1000:.2f} µm from the heightmap surface (limit "
+                                f"{BSPLINE_DEVIATION_MM * 1000:g} µm); raise [export] step_samples_u / step_samples_v")
         mu, mv = 2 * mu, 2 * (mv - 1) + 1
 
 

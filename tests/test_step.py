@@ -83,10 +83,12 @@ def test_creased_lens_is_one_valid_solid_whose_outer_face_bends_at_the_seams(tmp
 
 def test_the_fit_takes_as_many_samples_as_the_deviation_needs_and_no_more():
     rough = 3.0 * np.sin(5 * CYL.node_u(16))[:, None] * np.cos(np.linspace(0, 3 * np.pi, 6))[None, :]
-    mu, mv = step.fit_samples(CYL, rough, 512, 161)
+    fitted = step.fit_samples(CYL, rough, 512, 161)
+    mu, mv = fitted["samples"]
     assert (mu, mv) != rough.shape and mu % 16 == 0 and (mv - 1) % 5 == 0        # refined from the nodes
     within = step.deviation(CYL, rough, step._occ_surface(step.bspline_poles(CYL, rough, mu, mv)), mu, mv)
     assert within["radial_mm"] <= tolerances.BSPLINE_DEVIATION_MM
+    assert fitted["deviation"]["radial_mm"] == within["radial_mm"]
     coarser = step.deviation(CYL, rough, step._occ_surface(step.bspline_poles(CYL, rough, mu // 2, (mv - 1) // 2 + 1)),
                              mu // 2, (mv - 1) // 2 + 1)
     assert coarser["radial_mm"] > tolerances.BSPLINE_DEVIATION_MM
