@@ -202,7 +202,8 @@ def _key_figure(stage: str, figs: dict) -> str:
     if stage == "export":
         return (f"lens.stl {figs['stl_bytes'] / 1e6:.1f} MB, lens.step {figs['step_bytes'] / 1e6:.1f} MB, "
                 f"B-spline within {figs['bspline_deviation_mm'] * 1000:.2g} µm")
-    return ", ".join(f"{n} r {f['pearson']:.2f} (LED {f['led_pearson']:.2f})" for n, f in figs["walls"].items())
+    return ", ".join(f"{n} r {f['pearson']:.2f} SSIM {f['ssim']:.2f} (LED r {f['led_pearson']:.2f})"
+                     for n, f in figs["walls"].items())
 
 
 # -- 1. prepare ---------------------------------------------------------------------
@@ -580,7 +581,8 @@ def verify(build: Build) -> dict:
         figures["optimizer_match_limit"] = OPTIMIZER_MATCH_R
     for name, f in figures["walls"].items():
         _log(f"verify: {name}: Pearson r {f['pearson']:.3f}, SSIM {f['ssim']:.3f}, {f['share']:.1%} of the light "
-             f"({figures['real_light']}: r {f['led_pearson']:.3f})"
+             f"({figures['real_light']}: r {f['led_pearson']:.3f}); {f['ghost_share']:.1%} of it reflected "
+             f"inside the lens, SSIM {f['direct_ssim']:.3f} without it"
              + (f"; r {f['optimizer_pearson']:.3f} against the optimizer's render" if "optimizer_pearson" in f else ""))
     if figures.get("optimizer_match_min", 1.0) < OPTIMIZER_MATCH_R:
         _log(f"verify: WARNING: the exported lens's render matches the optimizer's only to r "
@@ -637,6 +639,7 @@ def _write_report(build: Build, figures: dict, pics: dict, report_mod) -> None:
                       "render_png": build.path("verify", f"{name}.png"),
                       "blur_png": build.path("verify", f"{name}_led.png"),
                       "pearson": f["pearson"], "ssim": f["ssim"], "share": f["share"],
+                      "ghost_share": f["ghost_share"], "direct_ssim": f["direct_ssim"],
                       "blur_pearson": f["led_pearson"], "blur_ssim": f["led_ssim"], "blur_share": f["led_share"],
                       **({"r_vs_optimizer": f["optimizer_pearson"]} if "optimizer_pearson" in f else {})})
     stage_figures = {}

@@ -21,7 +21,7 @@ _MIME = ((b"\x89PNG\r\n\x1a\n", "image/png"), (b"\xff\xd8\xff", "image/jpeg"), (
 
 # Wall dict keys with a fixed place on the page; any other scalar key is listed too.
 _IMAGE_KEYS = ("target_png", "render_png", "blur_png")
-_KNOWN = {"name", *_IMAGE_KEYS, "pearson", "ssim", "share",
+_KNOWN = {"name", *_IMAGE_KEYS, "pearson", "ssim", "share", "ghost_share", "direct_ssim",
           "blur_pearson", "blur_ssim", "blur_share"}
 
 _CSS = """
@@ -190,6 +190,9 @@ def _wall_html(wall: dict) -> str:
     name = wall.get("name", "wall")
     render_figs = [("Pearson r", _num(wall.get("pearson"))), ("SSIM", _num(wall.get("ssim"))),
                    ("share of light", _pct(wall.get("share")))]
+    render_figs += [(label, fmt(wall[key])) for label, key, fmt in
+                    (("reflected (ghosts)", "ghost_share", _pct), ("SSIM without ghosts", "direct_ssim", _num))
+                    if key in wall]
     blur_figs = [(label, fmt(wall[key])) for label, key, fmt in
                  (("Pearson r", "blur_pearson", _num), ("SSIM", "blur_ssim", _num),
                   ("share of light", "blur_share", _pct)) if key in wall]

@@ -106,12 +106,14 @@ def propagate(mi, scene, o, d, ior: float, seed: int, max_bounces: int, on_escap
 
     One wavefront per interface, compacted so finished photons cost nothing.
     ``scene`` holds one closed solid with outward normals; refraction uses the hit
-    facet's geometric normal ``si.n``.  ``on_escape(o, d)`` receives each wavefront's
-    escaping photons (Dr.Jit arrays).  Returns how many are still inside after
-    ``max_bounces`` interfaces.
+    facet's geometric normal ``si.n``.  ``on_escape(o, d, reflected)`` receives each
+    wavefront's escaping photons (Dr.Jit arrays), ``reflected`` a Dr.Jit Bool: the
+    photon was reflected at least once (a Fresnel ghost).  Returns how many are still
+    inside after ``max_bounces`` interfaces.
     """
     import drjit as dr
 
+    reflected = dr.full(mi.Bool, False, dr.width(d))
     for bounce in range(max_bounces):
         n = dr.width(d)
         if n == 0:
@@ -122,17 +124,20 @@ def propagate(mi, scene, o, d, ior: float, seed: int, max_bounces: int, on_escap
         dr.eval(valid, si.p, si.n, o, d)
         gone = dr.compress(~valid)
         if dr.width(gone):
-            on_escape(_take(mi.Point3f, o, gone), _take(mi.Vector3f, d, gone))
+            on_escape(_take(mi.Point3f, o, gone), _take(mi.Vector3f, d, gone), dr.gather(mi.Bool, reflected, gone))
         live = dr.compress(valid)
         if dr.width(live) == 0:  # every photon left (a flat panel's light can all be out by now)
             return 0
         # Opaque seeds: a literal would be baked into the kernel and force a recompile.
         rng = mi.PCG32(dr.width(live), dr.opaque(mi.UInt64, seed), dr.opaque(mi.UInt64, (bounce + 1) << 48))
         p = _take(mi.Point3f, si.p, live)
-        d = refract_or_reflect(mi, _take(mi.Vector3f, d, live), _take(mi.Vector3f, si.n, live),
-                               ior, rng.next_float32())
+        d_in = _take(mi.Vector3f, d, live)
+        normal = _take(mi.Vector3f, si.n, live)
+        d = refract_or_reflect(mi, d_in, normal, ior, rng.next_float32())
+        # A reflected photon turns back to the side of the facet it came from.
+        reflected = dr.gather(mi.Bool, reflected, live) | (dr.dot(d_in, normal) * dr.dot(d, normal) < 0)
         o = p + tolerances.RAY_EPSILON_MM * d
-        dr.eval(o, d)
+        dr.eval(o, d, reflected)
     return dr.width(d)
 
 
@@ -170,7 +175,9 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     (``emit``) with another light, e.g. a panel's collimated beam.
 
     Returns (per-wall flux images (rows, cols) float64, {"shares": [...], "lost": f,
-    "trapped": f}) with flux as a fraction of the emitted light.  The per-pixel sums
+    "trapped": f, "ghosts": [...]}) with flux as a fraction of the emitted light;
+    ``ghosts`` are the part of each image that was reflected inside the lens at least
+    once (Fresnel ghosts: what no outer surface steers, since it follows other paths).  The per-pixel sums
     run in numpy in a fixed order, so a seed gives the same images every time.
     """
     import drjit as dr
@@ -178,6 +185,7 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     mi = scene.mi
     sizes = [r * c for r, c in shapes]
     counts = np.zeros(sum(sizes), np.int64)
+    ghost_counts = np.zeros(sum(sizes), np.int64)
     trapped = 0
     done = 0
     batch_index = 0
@@ -187,15 +195,19 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
         rng = mi.PCG32(n, dr.opaque(mi.UInt64, batch_seed), dr.opaque(mi.UInt64, 0))
         o, d = emitter(mi, n, rng) if emitter else emit(mi, light_mm, light_radius_mm, n, rng)
 
-        def land(o_out, d_out):
+        def land(o_out, d_out, reflected):
             pixel = pixel_hits(mi, walls, shapes, o_out, d_out)
+            ghost = reflected.numpy()
             counts[:] += np.bincount(pixel[pixel >= 0], minlength=len(counts))
+            ghost_counts[:] += np.bincount(pixel[(pixel >= 0) & ghost], minlength=len(counts))
 
         trapped += propagate(mi, scene.scene, o, d, ior, batch_seed, max_bounces, land)
         done += n
         batch_index += 1
-    flux = counts / photons
-    images = [img.reshape(s) for img, s in zip(np.split(flux, np.cumsum(sizes)[:-1]), shapes)]
+    def per_wall(c):
+        return [img.reshape(s) for img, s in zip(np.split(c / photons, np.cumsum(sizes)[:-1]), shapes)]
+
+    images = per_wall(counts)
     shares = [float(img.sum()) for img in images]
     return images, {"shares": shares, "lost": 1.0 - sum(shares) - trapped / photons,
-                    "trapped": trapped / photons}
+                    "trapped": trapped / photons, "ghosts": per_wall(ghost_counts)}

@@ -58,8 +58,14 @@ def render_design(design_path, image_px: int, photons: int, seed: int, max_bounc
 def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bounces: int) -> dict:
     """Render point-light and LED-size images, compare with the targets, write images.
 
-    Returns {"walls": {name: {pearson, ssim, share, led_pearson, led_ssim, led_share}},
-    "lost_share", "trapped_share"}.
+    Returns {"walls": {name: {pearson, ssim, share, ghost_share, direct_ssim, ssim_ceiling,
+    led_pearson, led_ssim, led_share}}, "lost_share", "trapped_share"}.
+
+    ``ghost_share`` is the part of the wall's light that was reflected inside the lens
+    (Fresnel ghosts), ``direct_ssim`` the SSIM of the rest (the light the outer surface
+    steers: the design's own contrast), and ``ssim_ceiling`` the SSIM of the target
+    itself with these ghosts added: what an outer surface that put its light exactly on
+    the target would score, unless it also changed the ghosts.
     """
     from . import image
 
@@ -76,12 +82,17 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
         target = image.letterbox(artifacts.read_linear_png16(target_path), *point[k].shape)
         sharp = metrics.compare(point[k], target)
         blur = metrics.compare(led[k], target)
+        ghosts = info["ghosts"][k]
+        direct = point[k] - ghosts
+        exact = target / max(float(target.sum()), 1e-300) * float(direct.sum())
         figures["walls"][wall.name] = {
             "pearson": sharp["pearson"], "ssim": sharp["ssim"], "share": info["shares"][k],
+            "ghost_share": float(ghosts.sum() / max(point[k].sum(), 1e-300)),
+            "direct_ssim": metrics.ssim(direct, target), "ssim_ceiling": metrics.ssim(exact + ghosts, target),
             "led_pearson": blur["pearson"], "led_ssim": blur["ssim"], "led_share": led_info["shares"][k]}
         artifacts.write_png(out_dir / f"{wall.name}.png", point[k])
         artifacts.write_png(out_dir / f"{wall.name}_led.png", led[k])
-        artifacts.write_npz(out_dir / f"{wall.name}.npz", point=point[k], led=led[k])
+        artifacts.write_npz(out_dir / f"{wall.name}.npz", point=point[k], led=led[k], ghosts=ghosts)
     return figures
 
 

@@ -1,6 +1,7 @@
 import warnings
 
 import numpy as np
+import pytest
 
 from lampfab import losses, ot
 
@@ -27,6 +28,21 @@ def test_scale_independent_loss_ignores_brightness(rng):
     a = losses.si_mse(render, target, np.mean)
     assert np.isclose(a, losses.si_mse(5.0 * render, 0.1 * target, np.mean))
     assert losses.si_mse(target, target, np.mean) == 0.0
+
+
+@pytest.mark.parametrize("name", ["si_mse", "l1_weighted"])
+def test_numpy_loss_gradients_match_finite_differences(rng, name):
+    render, target = rng.random((6, 7)) + 0.05, rng.random((6, 7))
+    target[:2] = 0.0  # dark rows, as in a silhouette
+    loss, grad = losses.view_loss_and_grad(name, render, target)
+    assert loss == pytest.approx(losses.view_loss(name, render, target, np.mean))
+    step = 1e-6
+    numeric = np.zeros_like(render)
+    for index in np.ndindex(render.shape):
+        bumped = render.copy()
+        bumped[index] += step
+        numeric[index] = (losses.view_loss(name, bumped, target, np.mean) - loss) / step
+    assert np.allclose(grad, numeric, atol=1e-4 * np.abs(grad).max())
 
 
 def test_cyclic_schedule_visits_one_view_per_step():

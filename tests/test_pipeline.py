@@ -65,6 +65,11 @@ def test_verify_reports_figures_and_report_embeds_images(lamp):
     for name in ["front", "left", "right"]:
         wall = figures["walls"][name]
         assert -1 <= wall["pearson"] <= 1 and 0 < wall["share"] < 1
+        # Two glass-air interfaces reflect ~4 % each; every photon is either direct or a ghost.
+        assert 0.01 < wall["ghost_share"] < 0.3
+        images = np.load(out / "verify" / f"{name}.npz")
+        assert np.all(images["ghosts"] <= images["point"])
+        assert -1 <= wall["direct_ssim"] <= 1 and wall["ssim"] < wall["ssim_ceiling"] <= 1
     html = (out / "report.html").read_text()
     assert len(re.findall(r'<img[^>]+src="data:image/png;base64,', html)) >= 9
 

@@ -40,12 +40,17 @@ def test_snell_normals_send_light_where_asked(mi, rng):
     assert np.allclose(got, d_out, atol=1e-5)
 
 
-def test_render_conserves_light_and_is_deterministic(mi, default_design, cyl, inner_layer):
+@pytest.fixture
+def plain_room(mi, default_design, cyl, inner_layer):
+    """The plain lens (zero heights) in the default room: (scene, light, walls, shapes)."""
     walls = room.walls(default_design)
-    shapes = [room.image_shape(w, 16) for w in walls]
     v, f = lens.optical_mesh(cyl, np.zeros((32, 9)), 2, *inner_layer)
-    scene = trace.MeshScene(v, f)
-    light = room.light_position(default_design)
+    return (trace.MeshScene(v, f), room.light_position(default_design), walls,
+            [room.image_shape(w, 16) for w in walls])
+
+
+def test_render_conserves_light_and_is_deterministic(plain_room):
+    scene, light, walls, shapes = plain_room
     a, info = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3)
     b, _ = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3)
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
@@ -53,3 +58,15 @@ def test_render_conserves_light_and_is_deterministic(mi, default_design, cyl, in
     assert 0.02 < min(info["shares"]) and info["trapped"] < 0.05
     # The plain lens is symmetric: the three walls get the same light within noise.
     assert max(info["shares"]) - min(info["shares"]) < 0.01
+
+
+def test_ghosts_are_the_reflected_part_of_the_light(plain_room):
+    scene, light, walls, shapes = plain_room
+    images, info = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3)
+    for img, ghost in zip(images, info["ghosts"]):
+        assert np.all(ghost <= img)
+        # Two interfaces near normal incidence reflect ((n-1)/(n+1))^2 = 3.9 % each.
+        assert 0.03 < ghost.sum() / img.sum() < 0.15
+    # Glass that matches the air reflects nothing.
+    _, matched = trace.render_walls(scene, light, 0.0, 1.0 + 1e-6, walls, shapes, 200_000, seed=3)
+    assert all(ghost.sum() == 0 for ghost in matched["ghosts"])
