@@ -21,6 +21,23 @@ from .checks_distance import distance_to_mesh
 SAMPLES = (1024, 256)
 
 
+def sample_counts(grid: tuple[int, int], samples: tuple[int, int] = SAMPLES) -> tuple[int, int]:
+    """(mu, mv): ``samples`` raised to at least twice the node counts ``grid`` (nu, nv),
+    so that every spline cell is sampled inside, not only at its nodes."""
+    return max(samples[0], 2 * grid[0]), max(samples[1], 2 * grid[1])
+
+
+def radius_derivatives(cyl: surface.Cylinder, heights: np.ndarray, mu: int, mv: int) -> tuple[np.ndarray, ...]:
+    """(r, r_u, r_z, r_uu, r_uz, r_zz), each (mu, mv): the radius (mm) and its derivatives
+    by u (rad) and z (mm) on the sample grid, from the spline itself (exact: curvature
+    needs second derivatives, which differencing would make noisy)."""
+    nu, nv = heights.shape
+    pu = [surface.u_matrix(nu, mu, d, cyl.creased) for d in range(3)]
+    pz = [surface.open_matrix(nv, mv, d) / cyl.height_mm**d for d in range(3)]
+    return (cyl.radius_mm + pu[0] @ heights @ pz[0].T, pu[1] @ heights @ pz[0].T, pu[0] @ heights @ pz[1].T,
+            pu[2] @ heights @ pz[0].T, pu[1] @ heights @ pz[1].T, pu[0] @ heights @ pz[2].T)
+
+
 @dataclass
 class Fields:
     """Per-cell quantities on the (mu, mv) grid of the outer surface (mm, deg).
@@ -60,20 +77,10 @@ def compute_fields(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: n
     sampled inside, not only at its nodes.
     """
     heights = np.asarray(heights, np.float64)
-    nu, nv = heights.shape
-    mu, mv = max(samples[0], 2 * nu), max(samples[1], 2 * nv)
+    mu, mv = sample_counts(heights.shape, samples)
     H = cyl.height_mm
-    pu = [surface.u_matrix(nu, mu, d, cyl.creased) for d in range(3)]
-    pz = [surface.open_matrix(nv, mv, d) / H**d for d in range(3)]
-    # Radius and its derivatives from the spline itself (exact, no finite differences):
-    # curvature needs second derivatives, which differencing would make noisy.
-    s = pu[0] @ heights @ pz[0].T
-    r = cyl.radius_mm + s
-    r_u = pu[1] @ heights @ pz[0].T
-    r_z = pu[0] @ heights @ pz[1].T
-    r_uu = pu[2] @ heights @ pz[0].T
-    r_uz = pu[1] @ heights @ pz[1].T
-    r_zz = pu[0] @ heights @ pz[2].T
+    r, r_u, r_z, r_uu, r_uz, r_zz = radius_derivatives(cyl, heights, mu, mv)
+    s = r - cyl.radius_mm
 
     u = cyl.node_u(mu)
     z = cyl.node_z(mv)
@@ -93,7 +100,7 @@ def compute_fields(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: n
     # it leans past vertical (0 = vertical wall, 90 = horizontal ceiling).
     overhang = np.degrees(np.arcsin(np.clip(-n_z, 0.0, 1.0)))
 
-    concave_radius = _concave_radius(r, r_u, r_z, r_uu, r_uz, r_zz)
+    concave_radius = concave_radius_of(r, r_u, r_z, r_uu, r_uz, r_zz)
     # Tilt against the radial direction, as ``surface.slopes_deg`` defines it
     # (atan(hypot(r_u / r, r_z))) but from the spline's exact derivatives: slopes_deg
     # differences the samples (one-sided at the caps) and builds scipy's periodic matrix,
@@ -173,7 +180,7 @@ def _settle_side(xyz: np.ndarray, dist: np.ndarray, side: np.ndarray, vertices: 
     return out
 
 
-def _concave_radius(r, r_u, r_z, r_uu, r_uz, r_zz) -> np.ndarray:
+def concave_radius_of(r, r_u, r_z, r_uu, r_uz, r_zz) -> np.ndarray:
     """(mu, mv) mm: 1 / (largest principal curvature) where it is concave, inf elsewhere.
 
     Fundamental forms of X(u, z) = r (cos u, sin u, 0) + (0, 0, z) with the outward unit

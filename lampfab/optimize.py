@@ -108,7 +108,8 @@ class Optimizer:
 
     def __init__(self, cyl: surface.Cylinder, inner_vertices: np.ndarray, inner_faces: np.ndarray,
                  light_mm: np.ndarray, ior: float, walls: list[Wall], targets: list[np.ndarray],
-                 opt: Optimize, max_offset_mm: float, max_tilt_deg: float, max_overhang_deg: float | None = None):
+                 opt: Optimize, max_offset_mm: float, max_tilt_deg: float, max_overhang_deg: float | None = None,
+                 tool_radius_mm: float = 0.0):
         self.cyl, self.inner_v, self.inner_f = cyl, inner_vertices, inner_faces
         self.light, self.ior, self.walls, self.opt = light_mm, ior, walls, opt
         self.targets = [np.asarray(t, np.float64) for t in targets]
@@ -116,6 +117,7 @@ class Optimizer:
         self.max_offset = max_offset_mm
         self.max_tilt = max_tilt_deg
         self.max_overhang = max_overhang_deg
+        self.tool_radius = tool_radius_mm
         self._scene_grid = None
 
     def gradient(self, heights: np.ndarray, views: list[int], seed: int) -> tuple[float, np.ndarray]:
@@ -127,15 +129,17 @@ class Optimizer:
         raise NotImplementedError
 
     def makeable(self, heights: np.ndarray, slack_deg: float = 0.0) -> np.ndarray:
-        """Project into what the fabrication profile allows (slopes, overhangs, offsets).
+        """Project into what the fabrication profile allows (slopes, overhangs, hollows a
+        ball-end tool reaches, offsets).
 
         During the run slopes may exceed the limit by ``slack_deg`` (each projection
-        costs image quality); the result of the run is projected exactly."""
-        from .transport import limit_slopes
+        costs image quality); the result of the run is projected exactly.  Hollows are
+        smoothed at every step: the steps then shape the image around them."""
+        from .transport import limit_shape
 
         heights = np.clip(heights, -self.max_offset, self.max_offset)
         overhang = None if self.max_overhang is None else self.max_overhang + slack_deg
-        heights, _ = limit_slopes(self.cyl, heights, self.max_tilt + slack_deg, overhang)
+        heights, _ = limit_shape(self.cyl, heights, self.max_tilt + slack_deg, overhang, self.tool_radius)
         return np.clip(heights, -self.max_offset, self.max_offset)
 
     # -- loop ---------------------------------------------------------------------

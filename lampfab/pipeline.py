@@ -358,7 +358,8 @@ def optimize(build: Build) -> dict:
 
     method = {"seed": opt_mod.SeedOptimizer, "splat": SplatOptimizer}[opt.method]
     seed_opt = method(build.cylinder, iv, if_, build.light, build.fab.ior, build.walls, targets, opt,
-                      d.lens.max_offset_mm, build.fab.max_slope_deg, build.max_overhang_deg)
+                      d.lens.max_offset_mm, build.fab.max_slope_deg, build.max_overhang_deg,
+                      build.fab.tool_radius_mm)
     checkpoint = build.path("checkpoint.npz")
     for written in (checkpoint, build.path("heightmap.npz")):
         artifacts.remove_stale_temps(written)

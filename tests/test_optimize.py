@@ -76,3 +76,20 @@ def test_levels_are_four_times_finer_each():
     opt = Optimize(grid_u=256, grid_v=65, levels=3, iterations=10)
     assert optimize.level_grids(opt) == [(16, 5), (64, 17), (256, 65)]
     assert sum(optimize.level_steps(opt)) == 10
+
+
+def test_splat_steps_keep_hollows_open_for_a_ball_end_tool(mi, tiny_design, inner_layer, tiny_setup):
+    from lampfab import concavity
+
+    cyl, walls, targets = tiny_setup
+    opt = dataclasses.replace(tiny_design.optimize, splat_photons=100_000, iterations=6, levels=1, learning_rate=0.2)
+    tool_mm = 40.0  # wider than the hollows these steps dig on the tiny lens
+
+    def run(tool_radius_mm):
+        method = splat.SplatOptimizer(cyl, *inner_layer, room.light_position(tiny_design), 1.49, walls, targets,
+                                      opt, 20.0, 45.0, None, tool_radius_mm)
+        state = optimize.State(np.zeros((opt.grid_u, opt.grid_v)), 0, 0)
+        return method.run(state, lambda s: None, lambda s: None, lambda s, loss, msg: None).heights
+
+    assert concavity.concave_radius(cyl, run(0.0)).min() < tool_mm
+    assert concavity.concave_radius(cyl, run(tool_mm)).min() >= tool_mm

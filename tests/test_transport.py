@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lampfab import profile, raymap, room, surface, trace, transport
+from lampfab import concavity, profile, raymap, room, surface, trace, transport
 
 
 def _nominal(walls):
@@ -214,7 +214,7 @@ def test_a_ball_end_tool_radius_keeps_hollows_open(inner_layer, default_design, 
         d = [surface.u_matrix(nu, 4 * nu, k) for k in range(3)]
         e = [surface.open_matrix(nv, 4 * (nv - 1) + 1, k) / cyl.height_mm**k for k in range(3)]
         part = [[a @ heights @ b.T for b in e] for a in d]     # part[i][j]: d^i/du^i d^j/dz^j
-        return float(checks_geometry._concave_radius(cyl.radius_mm + part[0][0], part[1][0], part[0][1],
+        return float(checks_geometry.concave_radius_of(cyl.radius_mm + part[0][0], part[1][0], part[0][1],
                                                      part[2][0], part[1][1], part[0][2]).min())
 
     assert tightest(dimple) < 2.0
@@ -236,3 +236,32 @@ def test_a_print_may_face_up_steeply_but_not_down(cyl):
         assert tilt.max() <= 60.0 and rise.max() <= 45.0 + 1e-6
         if sign < 0:                                        # facing up: the 55° flank stays
             assert -rise.min() > 50.0
+
+
+def test_hollow_smoothing_opens_what_a_ball_end_tool_cannot_reach():
+    cyl = surface.Cylinder(45.0, 90.0)
+    nu, nv = 128, 17
+    u = np.arange(nu)[:, None]
+    z = np.arange(nv)[None, :]
+    # Broad ripples everywhere, and one narrow groove up the lens (nodes 2.2 mm apart).
+    heights = 0.3 * np.sin(2 * np.pi * 3 * u / nu) * np.cos(np.pi * z / (nv - 1))
+    heights[60:63, 4:13] -= np.array([1.0, 2.0, 1.0])[:, None]
+    assert concavity.concave_radius(cyl, heights).min() < 3.0
+    smoothed, radius = concavity.limit_concavity(cyl, heights, 3.0)
+    assert radius >= 3.0 and np.isclose(radius, concavity.concave_radius(cyl, smoothed).min())
+    # Only the nodes around the groove move; the ripples elsewhere stay as they were.
+    moved = np.any(smoothed != heights, axis=1)
+    assert moved[60:63].all() and not moved[:45].any() and not moved[78:].any()
+    # No tool (a print): nothing to do.
+    same, _ = concavity.limit_concavity(cyl, heights, 0.0)
+    assert np.array_equal(same, heights)
+
+
+def test_shape_limits_hold_together_after_projection():
+    cyl = surface.Cylinder(45.0, 90.0)
+    rng = np.random.default_rng(4)
+    heights = rng.normal(0.0, 1.5, (64, 17))
+    limited, tilt = transport.limit_shape(cyl, heights, 45.0, None, 3.0)
+    fine = surface.fine_shape(64, 17, 4)
+    assert surface.slopes_deg(cyl, limited, *fine)[0].max() <= 45.0 + 1e-6
+    assert concavity.concave_radius(cyl, limited).min() >= 3.0
