@@ -9,6 +9,8 @@ panorama.png  1536x512 360° panorama (centre column = front wall): a lit mounta
               with a moon, wrapping around without a seam (make lamp PANORAMA=...)
 astronaut.png 256x256  a real photograph: scikit-image's "astronaut" sample (NASA, public
               domain), in grey
+horse.png     400x328  scikit-image's "horse" silhouette, white on black: thin legs with
+              dark gaps between them, the hard case for a smooth lens
 
 Silhouettes are drawn at 4x (ImageDraw shapes; the apple body as a smooth signed
 distance field) and reduced with area averaging (anti-aliased edges); the portrait is computed with numpy from soft-edged ellipses.
@@ -188,9 +190,16 @@ def astronaut() -> Image.Image:
     return Image.fromarray(data.astronaut()).convert("L").reduce(2)
 
 
+def horse() -> Image.Image:
+    """scikit-image's "horse" silhouette (its test data), inverted: a white horse on black."""
+    from skimage import data
+
+    return Image.fromarray(np.where(data.horse(), 0, 255).astype(np.uint8))
+
+
 def main() -> None:
     for name, make in (("apple", apple), ("star", star), ("portrait", portrait), ("panorama", panorama),
-                       ("astronaut", astronaut)):
+                       ("astronaut", astronaut), ("horse", horse)):
         out = HERE / f"{name}.png"
         make().save(out, format="PNG", optimize=True)
         print(out)
