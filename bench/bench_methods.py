@@ -32,7 +32,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from lampfab import metrics, optimize, pipeline, solid, splat, trace, transport  # noqa: E402
+from lampfab import metrics, optimize, pipeline, solid, trace  # noqa: E402
 from lampfab.mi_env import mitsuba  # noqa: E402
 
 VERIFY_PHOTONS = 4_000_000
@@ -52,13 +52,12 @@ def measure(build, inner, runner, heights, targets) -> dict:
             "share": sum(info["shares"])}
 
 
-def run_method(name, build, inner, targets, budgets, start_heights, opt, cls, elapsed0) -> list[dict]:
+def run_method(name, build, inner, targets, budgets, start_heights, opt, elapsed0) -> list[dict]:
     """Optimize until each budget (seconds of computing since the method started,
     ``elapsed0`` of init included); stops early once the schedule is done."""
     rows = []
     state = optimize.State(start_heights.copy(), 0, 0)
-    runner = cls(build.cylinder, *inner, build.light, build.fab.ior, build.walls, build.targets(opt.sensor_px), opt,
-                 build.design.lens.max_offset_mm, build.fab.max_slope_deg, build.max_overhang_deg)
+    runner = build.optimizer(opt, inner, build.targets(opt.sensor_px))
     spent = elapsed0
     last = None
     for budget in budgets:
@@ -107,33 +106,23 @@ def main() -> None:
                                        preview_every=10**9, checkpoint_every=10**9)
         steps = args.seed_steps
         if not steps:
-            probe = optimize.SeedOptimizer(build.cylinder, *inner, build.light, build.fab.ior, build.walls,
-                                           build.targets(seed_opt.sensor_px), seed_opt, d.lens.max_offset_mm,
-                                           build.fab.max_slope_deg)
+            probe = build.optimizer(seed_opt, inner, build.targets(seed_opt.sensor_px))
             probe.gradient(np.zeros(grid), [0], seed=1)  # the first step compiles the kernels
             t0 = time.time()
             probe.gradient(np.zeros(grid), [0], seed=2)
             steps = max(2, int(budgets[-1] / (time.time() - t0)))
         seed_rows = run_method("seed", build, inner, targets, budgets, np.zeros(grid),
-                               dataclasses.replace(seed_opt, iterations=steps), optimize.SeedOptimizer, 0.0)
+                               dataclasses.replace(seed_opt, iterations=steps), 0.0)
 
         # lampfab's default: transport init, each of its fitting passes timed (measuring
         # happens afterwards, off the clock), then the profile's splat schedule.
         passes = []
         t0 = time.time()
-        heights, _ = transport.design(build.cylinder, build.walls, build.targets(d.optimize.sensor_px), *inner,
-                                      build.light, build.fab.ior, grid, d.optimize.tessellation,
-                                      d.optimize.transport_rounds, d.optimize.transport_photons, d.optimize.smoothness,
-                                      d.lens.max_offset_mm, build.fab.max_slope_deg, d.optimize.seed,
-                                      corrections=d.optimize.transport_corrections,
-                                      dump_share=d.optimize.dump_share, max_overhang_deg=build.max_overhang_deg,
-                                      log=lambda m: None,
-                                      on_pass=lambda h: passes.append((time.time() - t0, h.copy())))
+        heights, _ = build.transport_design(d.optimize, inner, log=lambda m: None,
+                                            on_pass=lambda h: passes.append((time.time() - t0, h.copy())))
         init_s = time.time() - t0
         splat_opt = dataclasses.replace(d.optimize, preview_every=10**9, checkpoint_every=10**9)
-        probe = splat.SplatOptimizer(build.cylinder, *inner, build.light, build.fab.ior, build.walls,
-                                     build.targets(splat_opt.sensor_px), splat_opt, d.lens.max_offset_mm,
-                                     build.fab.max_slope_deg, build.max_overhang_deg)
+        probe = build.optimizer(splat_opt, inner, build.targets(splat_opt.sensor_px))
         pass_rows = []
         for k, (at, h) in enumerate(passes):
             row = dict(measure(build, inner, probe, h, targets), method=f"transport pass {k + 1}",
@@ -146,7 +135,7 @@ def main() -> None:
         print(f"{'transport':9s} {init_s:6.1f} s  {0:5d} steps  r {init_row['r']:.3f}  SSIM {init_row['ssim']:.3f}  "
               f"light on walls {init_row['share']:.1%}  (before any gradient step)", flush=True)
         splat_rows = run_method("lampfab", build, inner, targets, [b for b in budgets if b >= init_s], heights,
-                                splat_opt, splat.SplatOptimizer, init_s)
+                                splat_opt, init_s)
 
     report(args, budgets, seed_rows, pass_rows + [init_row], splat_rows, steps)
 

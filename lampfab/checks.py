@@ -224,9 +224,10 @@ def _tool_radius(f: Fields, fab: Fabrication) -> dict:
 
 
 def overhang_cells(f: Fields, fab: Fabrication) -> np.ndarray:
-    if fab.process != "sla":
+    limit = overhang_limit_deg(fab)
+    if limit is None:
         return np.zeros(f.wall.shape, bool)
-    return f.overhang > OVERHANG_DEG + _ANGLE_TOL
+    return f.overhang > limit + _ANGLE_TOL
 
 
 def overhang_limit_deg(fab: Fabrication) -> float | None:

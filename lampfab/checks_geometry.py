@@ -27,17 +27,6 @@ def sample_counts(grid: tuple[int, int], samples: tuple[int, int] = SAMPLES) -> 
     return max(samples[0], 2 * grid[0]), max(samples[1], 2 * grid[1])
 
 
-def radius_derivatives(cyl: surface.Cylinder, heights: np.ndarray, mu: int, mv: int) -> tuple[np.ndarray, ...]:
-    """(r, r_u, r_z, r_uu, r_uz, r_zz), each (mu, mv): the radius (mm) and its derivatives
-    by u (rad) and z (mm) on the sample grid, from the spline itself (exact: curvature
-    needs second derivatives, which differencing would make noisy)."""
-    nu, nv = heights.shape
-    pu = [surface.u_matrix(nu, mu, d, cyl.creased) for d in range(3)]
-    pz = [surface.open_matrix(nv, mv, d) / cyl.height_mm**d for d in range(3)]
-    return (cyl.radius_mm + pu[0] @ heights @ pz[0].T, pu[1] @ heights @ pz[0].T, pu[0] @ heights @ pz[1].T,
-            pu[2] @ heights @ pz[0].T, pu[1] @ heights @ pz[1].T, pu[0] @ heights @ pz[2].T)
-
-
 @dataclass
 class Fields:
     """Per-cell quantities on the (mu, mv) grid of the outer surface (mm, deg).
@@ -79,7 +68,7 @@ def compute_fields(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: n
     heights = np.asarray(heights, np.float64)
     mu, mv = sample_counts(heights.shape, samples)
     H = cyl.height_mm
-    r, r_u, r_z, r_uu, r_uz, r_zz = radius_derivatives(cyl, heights, mu, mv)
+    r, r_u, r_z, r_uu, r_uz, r_zz = surface.radius_derivatives(cyl, heights, mu, mv)
     s = r - cyl.radius_mm
 
     u = cyl.node_u(mu)
@@ -101,10 +90,8 @@ def compute_fields(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: n
     overhang = np.degrees(np.arcsin(np.clip(-n_z, 0.0, 1.0)))
 
     concave_radius = concave_radius_of(r, r_u, r_z, r_uu, r_uz, r_zz)
-    # Tilt against the radial direction, as ``surface.slopes_deg`` defines it
-    # (atan(hypot(r_u / r, r_z))) but from the spline's exact derivatives: slopes_deg
-    # differences the samples (one-sided at the caps) and builds scipy's periodic matrix,
-    # 1.1 s for a new (nu, mu).  The two agree to ~0.1 deg inside (tests).
+    # Tilt against the radial direction, as ``surface.slopes_deg`` computes it, from the
+    # derivatives already at hand.
     slope = np.degrees(np.arctan(np.hypot(r_u / r, r_z)))
 
     iv = np.asarray(inner_vertices, np.float64)

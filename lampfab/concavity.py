@@ -33,7 +33,7 @@ def concave_radius(cyl: surface.Cylinder, heights: np.ndarray) -> np.ndarray:
     """(mu, mv) mm: the smallest concave radius of curvature on the check's samples
     (``checks_geometry.SAMPLES``), inf where the surface is convex."""
     mu, mv = checks_geometry.sample_counts(heights.shape)
-    return checks_geometry.concave_radius_of(*checks_geometry.radius_derivatives(cyl, heights, mu, mv))
+    return checks_geometry.concave_radius_of(*surface.radius_derivatives(cyl, heights, mu, mv))
 
 
 def limit_concavity(cyl: surface.Cylinder, heights: np.ndarray, tool_radius_mm: float,

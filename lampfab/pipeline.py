@@ -69,6 +69,29 @@ class Build:
                  "inner_layer": self.design.lens.inner_mesh or DEFAULT_INNER}
         return artifacts.StageReport(stage, {**inputs, **files}, self.settings(), seed=self.design.optimize.seed)
 
+    def transport_design(self, opt, inner, **progress) -> tuple[np.ndarray, dict]:
+        """``transport.design`` for this build's lens, room, light and fabrication limits
+        with the ``[optimize]`` settings ``opt``; ``progress``: log, on_step, on_pass."""
+        from . import transport
+
+        return transport.design(
+            self.cylinder, self.walls, self.targets(opt.sensor_px), *inner, self.light, self.fab.ior,
+            (opt.grid_u, opt.grid_v), opt.tessellation, opt.transport_rounds, opt.transport_photons,
+            opt.smoothness, self.design.lens.max_offset_mm, self.fab.max_slope_deg, opt.seed,
+            corrections=opt.transport_corrections, dump_share=opt.dump_share,
+            tool_radius_mm=self.fab.tool_radius_mm, max_overhang_deg=self.max_overhang_deg, **progress)
+
+    def optimizer(self, opt, inner, targets):
+        """The refinement ``opt.method`` names, for this build's lens, room, light and
+        fabrication limits, against ``targets`` (one image per wall)."""
+        from . import optimize
+        from .splat import SplatOptimizer
+
+        method = {"seed": optimize.SeedOptimizer, "splat": SplatOptimizer}[opt.method]
+        return method(self.cylinder, *inner, self.light, self.fab.ior, self.walls, targets, opt,
+                      self.design.lens.max_offset_mm, self.fab.max_slope_deg, self.max_overhang_deg,
+                      self.fab.tool_radius_mm)
+
     def inner(self):
         from . import inner
 
@@ -302,7 +325,7 @@ def init(build: Build) -> dict:
     """The first lens: transport-based (default) or the source's plain cylinder."""
     from . import transport
 
-    d, opt = build.design, build.design.optimize
+    opt = build.design.optimize
     report = build.begin("init", build.target_paths())
     grid = (opt.grid_u, opt.grid_v)
     if opt.init == "cylinder":
@@ -311,7 +334,6 @@ def init(build: Build) -> dict:
     else:
         from tqdm import tqdm
 
-        iv, if_ = build.inner()
         bar = tqdm(total=transport.fit_steps(grid, opt.transport_rounds, opt.transport_corrections), desc="init",
                    unit="step", dynamic_ncols=True)
 
@@ -319,13 +341,7 @@ def init(build: Build) -> dict:
             bar.update()
             bar.set_postfix(error=f"{figures['rms_landing_error_mm']:.1f} mm")
 
-        heights, figs = transport.design(
-            build.cylinder, build.walls, build.targets(opt.sensor_px), iv, if_, build.light,
-            build.fab.ior, grid, opt.tessellation, opt.transport_rounds, opt.transport_photons,
-            opt.smoothness, d.lens.max_offset_mm, build.fab.max_slope_deg, opt.seed,
-            corrections=opt.transport_corrections, dump_share=opt.dump_share,
-            tool_radius_mm=build.fab.tool_radius_mm, max_overhang_deg=build.max_overhang_deg, log=bar.write,
-            on_step=step)
+        heights, figs = build.transport_design(opt, build.inner(), log=bar.write, on_step=step)
         bar.update(bar.total - bar.n)  # a fit that converged early skips its last steps
         bar.close()
         report.figure(method="transport", **figs)
@@ -352,14 +368,7 @@ def optimize(build: Build) -> dict:
     if not np.all(np.isfinite(init_heights)):
         raise LampfabError(f"{build.path('init.npz')}: {int(np.sum(~np.isfinite(init_heights)))} heights are NaN or "
                            f"Inf; re-run init (make init), and report it if it happens again")
-    iv, if_ = build.inner()
-    targets = build.targets(opt.sensor_px)
-    from .splat import SplatOptimizer
-
-    method = {"seed": opt_mod.SeedOptimizer, "splat": SplatOptimizer}[opt.method]
-    seed_opt = method(build.cylinder, iv, if_, build.light, build.fab.ior, build.walls, targets, opt,
-                      d.lens.max_offset_mm, build.fab.max_slope_deg, build.max_overhang_deg,
-                      build.fab.tool_radius_mm)
+    seed_opt = build.optimizer(opt, build.inner(), build.targets(opt.sensor_px))
     checkpoint = build.path("checkpoint.npz")
     for written in (checkpoint, build.path("heightmap.npz")):
         artifacts.remove_stale_temps(written)

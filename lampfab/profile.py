@@ -100,8 +100,9 @@ class Verify:
 
 @dataclass(frozen=True)
 class Export:
-    step_samples_u: int = _spec(256, 16, 4096, doc="B-spline interpolation samples around")
-    step_samples_v: int = _spec(64, 4, 4096, doc="B-spline interpolation samples up")
+    step_samples_u: int = _spec(256, 16, 4096, doc="most B-spline interpolation samples around (export "
+                                                   "takes the fewest within the deviation target)")
+    step_samples_v: int = _spec(64, 4, 4096, doc="most B-spline interpolation samples up")
 
 
 @dataclass(frozen=True)

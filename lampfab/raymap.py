@@ -33,7 +33,7 @@ from .room import Wall
 DIFF_STEP_MM = 1e-3
 
 # The slope term aims this far under the fabrication limit: the check samples the spline
-# at other points than the fit, and the final projection (transport.limit_slopes) then
+# at other points than the fit, and the final projection (transport.limit_shape) then
 # has little to do.
 SLOPE_MARGIN_DEG = 1.0
 
@@ -84,14 +84,14 @@ class Photons:
     n_elevation: int
 
 
-def fresnel_transmission(cos_i: np.ndarray, eta: float) -> tuple[np.ndarray, np.ndarray]:
-    """Unpolarized transmittance and cos of the refracted angle (0 under total internal
-    reflection) for incidence cosines ``cos_i`` (>= 0) and eta = n_transmitted / n_incident."""
+def fresnel_transmission(cos_i: np.ndarray, eta: float) -> np.ndarray:
+    """Unpolarized transmittance (0 under total internal reflection) for incidence cosines
+    ``cos_i`` (>= 0) and eta = n_transmitted / n_incident."""
     sin2_t = (1.0 - cos_i**2) / eta**2
     cos_t = np.sqrt(np.maximum(1.0 - sin2_t, 0.0))
     rs = ((cos_i - eta * cos_t) / (cos_i + eta * cos_t)) ** 2
     rp = ((eta * cos_i - cos_t) / (eta * cos_i + cos_t)) ** 2
-    return np.where(sin2_t >= 1.0, 0.0, 1.0 - 0.5 * (rs + rp)), cos_t
+    return np.where(sin2_t >= 1.0, 0.0, 1.0 - 0.5 * (rs + rp))
 
 
 def refract(direction: np.ndarray, normal: np.ndarray, eta: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -132,7 +132,7 @@ def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, ligh
     facing = np.einsum("ij,ij->i", emitted, normal) >= 0
     along = np.where(facing[:, None], normal, -normal)  # the facet normal on the glass side
     inside, cos_i, _ = refract(emitted, along, ior)
-    transmitted, _ = fresnel_transmission(cos_i, ior)
+    transmitted = fresnel_transmission(cos_i, ior)
     origin = start + t[:, None] * emitted + 1e-4 * inside
     return Photons(origin, inside, emitted, transmitted / len(valid), np.stack([a, s], axis=1),
                    n_azimuth, n_elevation)
@@ -306,8 +306,7 @@ class RayMap:
                  + OFFSET_WEIGHT * float(offset_excess @ offset_excess) / n_fine
                  + CURVATURE_WEIGHT * sum(float(e @ e) for e, _ in limits) / n_fine
                  + LEVEL_WEIGHT * float(offset @ offset) / n_fine + self.smoothness * float(smooth @ smooth))
-        out = {"value": value, "data": data, "max_tilt_deg": float(np.degrees(np.arctan(tan_tilt.max()))),
-               "landing": land, "use": use}
+        out = {"value": value, "data": data, "max_tilt_deg": float(np.degrees(np.arctan(tan_tilt.max())))}
         if not with_jacobian:
             return out
         k = len(land.index)

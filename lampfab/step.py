@@ -150,7 +150,7 @@ def deviation(cyl: surface.Cylinder, heights: np.ndarray, occ_surface, samples_u
             occ_surface.D0(float(ui), float(zj), p)
             row[j] = (p.X(), p.Y(), p.Z())
     uu, zz = np.meshgrid(u, z, indexing="ij")
-    r_true = cyl.radius_mm + surface.evaluate(cyl, heights, uu.ravel(), zz.ravel()).reshape(uu.shape)
+    r_true = cyl.radius_mm + surface.sample(cyl, heights, 2 * mu, 2 * mv - 1)  # the grid above
     true = np.stack([r_true * np.cos(uu), r_true * np.sin(uu), zz], axis=-1)
     at_sample = np.zeros(out.shape[:2], bool)
     at_sample[::2, ::2] = True
@@ -281,7 +281,7 @@ def build_step_solid(cyl: surface.Cylinder, inner_vertices: np.ndarray, inner_fa
     """The lens as an OCCT solid (TopoDS_Solid) around the outer B-spline ``fitted``
     (``fit_samples``) and figures about it.
 
-    Arguments as ``write_step``.  Returns (solid, dict(fit_s, build_s, poles_u, poles_v,
+    Returns (solid, dict(fit_s, build_s, poles_u, poles_v,
     faces, deviation dict, bore dict)).
     """
     from OCP.BRep import BRep_Builder

@@ -274,6 +274,20 @@ def closed_outer_mesh(cyl: Cylinder, heights: np.ndarray, tessellation: int) -> 
     return np.vstack([verts, centres]), np.vstack([faces, caps])
 
 
+def radius_derivatives(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int, order: int = 2) -> tuple[np.ndarray, ...]:
+    """The radius (mm) and its derivatives by u (rad) and z (mm) on the (mu, mv) sample
+    grid, from the spline itself (exact: curvature needs second derivatives, which
+    differencing would make noisy).  Returns (r, r_u, r_z), each (mu, mv), and with
+    ``order`` 2 also (r_uu, r_uz, r_zz)."""
+    nu, nv = heights.shape
+    along_u = [u_matrix(nu, mu, d, cyl.creased) @ heights for d in range(order + 1)]
+    pz = [open_matrix(nv, mv, d).T / cyl.height_mm**d for d in range(order + 1)]
+    first = (cyl.radius_mm + along_u[0] @ pz[0], along_u[1] @ pz[0], along_u[0] @ pz[1])
+    if order < 2:
+        return first
+    return (*first, along_u[2] @ pz[0], along_u[1] @ pz[1], along_u[0] @ pz[2])
+
+
 def slopes_deg(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int) -> tuple[np.ndarray, np.ndarray]:
     """Angle between the surface normal and the radial direction, from the spline's
     exact derivatives, and its part along z.
@@ -281,12 +295,7 @@ def slopes_deg(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int) -> tuple[np
     Returns ((mu, mv) float64 deg total tilt, (mu, mv) float64 deg tilt along z: positive
     where the radius grows upward, i.e. the surface faces down).
     """
-    nu, nv = heights.shape
-    pz = open_matrix(nv, mv)
-    pu = u_matrix(nu, mu, 0, cyl.creased)
-    r = cyl.radius_mm + pu @ heights @ pz.T
-    r_u = u_matrix(nu, mu, 1, cyl.creased) @ heights @ pz.T
-    r_z = pu @ heights @ open_matrix(nv, mv, 1).T / cyl.height_mm
+    r, r_u, r_z = radius_derivatives(cyl, heights, mu, mv, order=1)
     tilt = np.degrees(np.arctan(np.hypot(r_u / r, r_z)))
     return tilt, np.degrees(np.arctan(r_z))
 
@@ -302,9 +311,7 @@ def slope_penalty(cyl: Cylinder, heights: np.ndarray, max_tilt_deg: float,
     mu, mv = fine_shape(nu, nv, samples_per_cell)
     p0, p1 = u_matrix(nu, mu, 0, cyl.creased), u_matrix(nu, mu, 1, cyl.creased)
     z0, z1 = open_matrix(nv, mv), open_matrix(nv, mv, 1) / cyl.height_mm
-    r = cyl.radius_mm + p0 @ heights @ z0.T
-    r_u = p1 @ heights @ z0.T
-    r_z = p0 @ heights @ z1.T
+    r, r_u, r_z = radius_derivatives(cyl, heights, mu, mv, order=1)
     t = np.hypot(r_u / r, r_z)
     excess = np.maximum(t - np.tan(np.radians(max_tilt_deg)), 0.0)
     n = excess.size

@@ -21,11 +21,12 @@ overhangs, and hollows a ball-end tool can reach.
 from __future__ import annotations
 
 import warnings
+from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.ndimage import map_coordinates
-from scipy.sparse.linalg import spsolve
+from scipy.sparse.linalg import splu
 
 from . import checks_geometry, concavity, ot, raymap, surface
 from .room import SECTOR_WIDTH_DEG, Wall
@@ -34,11 +35,11 @@ from .room import SECTOR_WIDTH_DEG, Wall
 # spline at other points than the projection does.
 SLOPE_MARGIN_DEG = 0.2
 
-# Rounds of slope projection and hollow smoothing in turn (``limit_shape``).  On every lens
-# measured the first round left both within their limits and the second changed nothing.
+# Rounds of hollow smoothing and slope projection in turn (``limit_shape``).  On every lens
+# measured the first round left both within their limits.
 SHAPE_ROUNDS = 3
 
-# Photon strata around per heightmap node around: four photons cross each node column.
+# Photon strata around the lens per heightmap node: four photons cross each node column.
 AZIMUTH_STRATA_PER_NODE = 4
 
 # Optimal transport runs on cells of 2 x 2 photon strata: enough light per cell for a
@@ -304,7 +305,7 @@ def _transport(mass: np.ndarray, x1: np.ndarray, x2: np.ndarray, wall: Wall, lig
     ``mass`` (n1, n2) at angles (x1, x2) onto the banded target."""
     rows, cols = target.shape
     pad = max(1, int(rows * BAND_SHARE)) if dump_share > 0 else 0
-    banded = _banded(target, pad, dump_share) if pad else target / target.sum()
+    banded = _banded(target, pad, dump_share)
     y1, y2 = _pixel_angles(wall, light_mm, cols, rows, pad)
     shift = min(x1.min(), x2.min(), y1.min(), y2.min()) - 1.0  # positive coordinates for the log-domain maps
     blur = (BLUR_PX * (y1[-1] - y1[0]) / (cols - 1)) ** 2
@@ -356,17 +357,21 @@ def snell_normals(d_in: np.ndarray, d_out: np.ndarray, ior: float) -> np.ndarray
 def limit_shape(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float,
                 max_overhang_deg: float | None = None, tool_radius_mm: float = 0.0) -> tuple[np.ndarray, float]:
     """``limit_slopes``, then ``concavity.limit_concavity`` for a ball-end tool of
-    ``tool_radius_mm`` (0: none), in turn until neither changes the surface: smoothing a
-    hollow can steepen its rim, and the slope projection can make a new hollow.
+    ``tool_radius_mm`` (0: none) and ``limit_slopes`` again, in turn until neither changes
+    the surface: smoothing a hollow can steepen its rim, and the slope projection can make
+    a new hollow.  The slopes are always projected last.
     Returns (heights (nu, nv) mm, max tilt deg)."""
+    heights, max_tilt = limit_slopes(cyl, heights, max_tilt_deg, max_overhang_deg)
     if tool_radius_mm <= 0:
-        return limit_slopes(cyl, heights, max_tilt_deg, max_overhang_deg)
+        return heights, max_tilt
     for _ in range(SHAPE_ROUNDS):
-        heights, max_tilt = limit_slopes(cyl, heights, max_tilt_deg, max_overhang_deg)
         smoothed, _ = concavity.limit_concavity(cyl, heights, tool_radius_mm)
         if np.array_equal(smoothed, heights):
             break
-        heights = smoothed
+        # Smoothing leaves no hollow too tight; if the slopes hold too, both do.
+        heights, max_tilt = limit_slopes(cyl, smoothed, max_tilt_deg, max_overhang_deg)
+        if np.array_equal(heights, smoothed):
+            break
     return heights, max_tilt
 
 
@@ -404,14 +409,9 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
         return heights, float(tilt.max())
     du = 2 * np.pi / nu
     dz = cyl.height_mm / (nv - 1)
-    idx = np.arange(nu * nv).reshape(nu, nv)
-    a = np.concatenate([idx.ravel(), idx[:, 1:].ravel()])
-    b = np.concatenate([np.roll(idx, 1, axis=0).ravel(), idx[:, :-1].ravel()])
+    a, b, diff, normal_eq = _edge_system(nu, nv)
     m = len(a)
     along_z = np.arange(m) >= nu * nv
-    diff = sp.csr_matrix((np.concatenate([np.ones(m), -np.ones(m)]),
-                          (np.concatenate([np.arange(m)] * 2), np.concatenate([a, b]))), shape=(m, nu * nv))
-    normal_eq = (diff.T @ diff + sp.identity(nu * nv) * 1e-9).tocsc()
     scale = np.concatenate([np.full(nu * nv, du), np.full(nu * (nv - 1), dz)])
     clamp = np.full(m, max_tilt_deg - 0.5)
     rise_clamp = np.where(along_z, min(max_rise_deg, max_tilt_deg) - 0.5, 89.0)
@@ -431,7 +431,7 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
         limit = np.tan(np.radians(clamp))
         upper = np.minimum(limit, np.tan(np.radians(rise_clamp)))
         excess = np.maximum(tangent - upper, 0.0) + np.minimum(tangent + limit, 0.0)
-        delta = spsolve(normal_eq, diff.T @ (-excess / r_edge * scale))
+        delta = normal_eq.solve(diff.T @ (-excess / r_edge * scale))
         heights = (cyl.radius_mm + heights) * np.exp(delta.reshape(nu, nv) - delta.mean()) - cyl.radius_mm
         tilt, over_tilt, over_rise = overshoot()
         if over_tilt.max() <= 0 and over_rise.max() <= 0:
@@ -440,6 +440,20 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
         tighten(rise_clamp, np.where(np.isfinite(over_rise), over_rise, -1.0))
         rise_clamp[~along_z] = 89.0
     return heights, float(tilt.max())
+
+
+@lru_cache(maxsize=8)
+def _edge_system(nu: int, nv: int):
+    """The node grid's edges for ``limit_slopes``: (first nodes (m,), second nodes (m,),
+    differences along them (m, nu*nv), LU of their normal equations).  Edges run around
+    (periodic) then up.  The same for every pass and every call on a grid, so built once."""
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    a = np.concatenate([idx.ravel(), idx[:, 1:].ravel()])
+    b = np.concatenate([np.roll(idx, 1, axis=0).ravel(), idx[:, :-1].ravel()])
+    m = len(a)
+    diff = sp.csr_matrix((np.concatenate([np.ones(m), -np.ones(m)]),
+                          (np.concatenate([np.arange(m)] * 2), np.concatenate([a, b]))), shape=(m, nu * nv))
+    return a, b, diff, splu((diff.T @ diff + sp.identity(nu * nv) * 1e-9).tocsc())
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

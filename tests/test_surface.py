@@ -6,7 +6,7 @@ from scipy.interpolate import make_interp_spline
 from lampfab import surface
 
 
-def test_periodic_matrix_matches_scipy(rng):
+def test_u_matrix_matches_scipys_periodic_spline(rng):
     n, m = 24, 96
     y = rng.normal(size=n)
     x = np.linspace(0, 2 * np.pi, n + 1)
