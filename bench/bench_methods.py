@@ -100,9 +100,10 @@ def main() -> None:
         d = build.design
         grid = (d.optimize.grid_u, d.optimize.grid_v)
 
-        # The source's method: plain cylinder, ptracer, cyclic views, coarse-to-fine
-        # (half the schedule on the coarse grid, as the profile's levels split it).
-        seed_opt = dataclasses.replace(d.optimize, method="seed", schedule="cyclic", spp=64,
+        # The source's method: plain cylinder, ptracer, its scale-independent MSE, cyclic
+        # views, coarse-to-fine (half the schedule on the coarse grid, as the profile's
+        # levels split it).
+        seed_opt = dataclasses.replace(d.optimize, method="seed", loss="si_mse", schedule="cyclic", spp=64,
                                        preview_every=10**9, checkpoint_every=10**9)
         steps = args.seed_steps
         if not steps:

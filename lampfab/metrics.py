@@ -23,7 +23,11 @@ from __future__ import annotations
 
 import numpy as np
 
-# Wang et al.'s Gaussian window needs 11x11 pixels (truncate 3.5 sigma at sigma 1.5).
+# Wang et al.'s SSIM: a Gaussian window of sigma 1.5 px, and the stabilising constants
+# C1 = (K1 * data_range)^2, C2 = (K2 * data_range)^2.  losses.ssim_term uses the same.
+SSIM_SIGMA = 1.5
+SSIM_K1, SSIM_K2 = 0.01, 0.03
+# That window needs 11x11 pixels (scikit-image truncates it at 3.5 sigma).
 _GAUSS_MIN = 11
 
 
@@ -67,19 +71,24 @@ def ssim(render, target) -> float:
     rn, tn = _normalized(r), _normalized(t)
     if rn is None or tn is None:
         return 0.0
-    data_range = float(tn.max() - tn.min())
-    if not data_range > 0.0:
-        data_range = 1.0  # constant target: its normalized value is 1 everywhere
+    data_range = ssim_data_range(tn)
     small = min(r.shape)
     if small >= _GAUSS_MIN:
-        kw = dict(gaussian_weights=True, sigma=1.5, use_sample_covariance=False)
+        kw = dict(gaussian_weights=True, sigma=SSIM_SIGMA, use_sample_covariance=False)
     elif small >= 3:
         # Too small for Wang's window: the largest odd uniform window that fits.
         kw = dict(win_size=small if small % 2 else small - 1, use_sample_covariance=False)
     else:
         raise ValueError(f"images of shape {r.shape} are too small for SSIM (need 3x3)")
-    value = structural_similarity(rn, tn, data_range=data_range, **kw)
+    value = structural_similarity(rn, tn, data_range=data_range, K1=SSIM_K1, K2=SSIM_K2, **kw)
     return float(value) if np.isfinite(value) else 0.0
+
+
+def ssim_data_range(normalized_target: np.ndarray) -> float:
+    """The range of the mean-normalized target (see the module docstring); 1.0 for a
+    constant target, whose normalized value is 1 everywhere."""
+    data_range = float(normalized_target.max() - normalized_target.min())
+    return data_range if data_range > 0.0 else 1.0
 
 
 def share(flux_on_wall, flux_emitted) -> float:

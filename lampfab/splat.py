@@ -3,9 +3,9 @@
 The light inside the glass does not depend on the outer surface: photons are traced
 from the LED through the fixed inner layer once.  Each step then needs a single
 intersection with the outer mesh, Snell's law at the hit facet, the wall plane, and a
-bilinear splat into each wall's image.  Every photon counts (no camera connection), and
-the photon set is fixed for a step, so the objective has no Monte Carlo noise within a
-step.  Fresnel reflections are left out of the gradient; verify traces them.
+splat into each wall's image (bilinear on a finer grid, summed per pixel).  Every photon
+counts (no camera connection), and the photon set is fixed for a step, so the objective
+has no Monte Carlo noise within a step.  Fresnel reflections are left out of the gradient; verify traces them.
 
 Bit-reproducible: Dr.Jit computes only per-photon quantities (where a photon lands, and
 its derivative with respect to the three corners of the facet it crossed).  Every sum
@@ -21,6 +21,14 @@ import numpy as np
 
 from . import losses, surface
 from .optimize import Optimizer
+
+# Photons are splatted bilinearly onto a grid this many times finer than the wall's image,
+# then summed per pixel: nearly the photon count per pixel area, which is what verify
+# bins.  A bilinear splat on the image's own pixels is a tent two pixels wide that hides
+# pixel-scale ripple from the loss: on the apple (64 px) the optimizer's own render scored
+# SSIM 0.75 where binning the same photons per pixel gave 0.65; at 4x the two agree to
+# 0.01, and the refined lens gains SSIM 0.025 in verify at the same cost per step.
+SUPERSAMPLE = 4
 
 
 class SplatOptimizer(Optimizer):
@@ -123,31 +131,39 @@ class SplatOptimizer(Optimizer):
         return corners, v, per_view
 
     def _splat(self, x: np.ndarray, y: np.ndarray, ok: np.ndarray, view: int, grad_image: np.ndarray | None = None):
-        """Bilinear splat of photons at pixel coordinates (x, y) (k,) float64 into a
-        (rows*cols,) float64 flux image, summed in numpy.  With ``grad_image`` (the
-        loss's gradient per pixel) returns instead the loss's gradient per photon with
-        respect to x and y: ((k,), (k,)) float64."""
+        """Splat of photons at pixel coordinates (x, y) (k,) float64 into a (rows*cols,)
+        float64 flux image, summed in numpy: bilinear on a grid ``SUPERSAMPLE`` times
+        finer, then summed over each pixel's sub-pixels.  With ``grad_image`` (the loss's
+        gradient per pixel) returns instead the loss's gradient per photon with respect
+        to x and y: ((k,), (k,)) float64."""
         rows, cols = self.shapes[view]
-        ok = ok & np.isfinite(x) & np.isfinite(y) & (x > -1) & (x < cols) & (y > -1) & (y < rows)
-        x0, y0 = np.floor(np.where(ok, x, 0.0)), np.floor(np.where(ok, y, 0.0))
-        fx, fy = np.where(ok, x - x0, 0.0), np.where(ok, y - y0, 0.0)
+        s = SUPERSAMPLE
+        fine_rows, fine_cols = rows * s, cols * s
+        xf, yf = (x + 0.5) * s - 0.5, (y + 0.5) * s - 0.5
+        ok = ok & np.isfinite(xf) & np.isfinite(yf) & (xf > -1) & (xf < fine_cols) & (yf > -1) & (yf < fine_rows)
+        x0, y0 = np.floor(np.where(ok, xf, 0.0)), np.floor(np.where(ok, yf, 0.0))
+        fx, fy = np.where(ok, xf - x0, 0.0), np.where(ok, yf - y0, 0.0)
         weight = 1.0 / self.opt.splat_photons
-        image = np.zeros(rows * cols)
+        image = np.zeros(fine_rows * fine_cols)
+        if grad_image is not None:
+            grad_fine = np.repeat(np.repeat(grad_image.reshape(rows, cols), s, axis=0), s, axis=1).ravel()
         gx, gy = np.zeros(len(x)), np.zeros(len(x))
         for dx, dy, w, dw_dx, dw_dy in ((0, 0, (1 - fx) * (1 - fy), -(1 - fy), -(1 - fx)),
                                         (1, 0, fx * (1 - fy), 1 - fy, -fx),
                                         (0, 1, (1 - fx) * fy, -fy, 1 - fx),
                                         (1, 1, fx * fy, fy, fx)):
             cx, cy = x0.astype(np.int64) + dx, y0.astype(np.int64) + dy
-            inside = ok & (cx >= 0) & (cx < cols) & (cy >= 0) & (cy < rows)
-            pixel = np.where(inside, cy * cols + cx, 0)
+            inside = ok & (cx >= 0) & (cx < fine_cols) & (cy >= 0) & (cy < fine_rows)
+            pixel = np.where(inside, cy * fine_cols + cx, 0)
             if grad_image is None:
-                image += np.bincount(pixel, weights=np.where(inside, weight * w, 0.0), minlength=rows * cols)
+                image += np.bincount(pixel, weights=np.where(inside, weight * w, 0.0), minlength=image.size)
             else:
-                g = np.where(inside, weight * grad_image[pixel], 0.0)
+                g = np.where(inside, weight * grad_fine[pixel], 0.0)
                 gx += g * dw_dx
                 gy += g * dw_dy
-        return image if grad_image is None else (gx, gy)
+        if grad_image is not None:
+            return gx * s, gy * s  # d(xf)/dx = s
+        return image.reshape(rows, s, cols, s).sum(axis=(1, 3)).ravel()
 
     def render(self, heights: np.ndarray, view: int, seed: int) -> np.ndarray:
         self._ensure_scene(heights)
@@ -169,11 +185,10 @@ class SplatOptimizer(Optimizer):
         surrogate = self.mi.Float(0.0)
         for view, (x, y, ok) in zip(views, per_view):
             xs, ys = x.numpy().astype(np.float64), y.numpy().astype(np.float64)
-            image = self._splat(xs, ys, ok, view)
-            loss, grad_image = losses.view_loss_and_grad(self.opt.loss, image, self.targets[view].ravel(),
-                                                         weights[view])
+            image = self._splat(xs, ys, ok, view).reshape(self.shapes[view])
+            loss, grad_image = losses.view_loss_and_grad(self.opt.loss, image, self.targets[view], weights[view])
             total += loss
-            gx, gy = self._splat(xs, ys, ok, view, grad_image)
+            gx, gy = self._splat(xs, ys, ok, view, grad_image.ravel())
             # Linear in x and y with the loss's slopes: its backward pass gives each
             # photon's facet corners their gradient, photon by photon (no sums).
             surrogate = surrogate + _jit_float(self.mi, gx) * x + _jit_float(self.mi, gy) * y

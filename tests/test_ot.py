@@ -30,7 +30,7 @@ def test_scale_independent_loss_ignores_brightness(rng):
     assert losses.si_mse(target, target, np.mean) == 0.0
 
 
-@pytest.mark.parametrize("name", ["si_mse", "l1_weighted"])
+@pytest.mark.parametrize("name", ["si_mse", "si_mse_ssim", "l1_weighted"])
 def test_numpy_loss_gradients_match_finite_differences(rng, name):
     render, target = rng.random((6, 7)) + 0.05, rng.random((6, 7))
     target[:2] = 0.0  # dark rows, as in a silhouette
@@ -43,6 +43,19 @@ def test_numpy_loss_gradients_match_finite_differences(rng, name):
         bumped[index] += step
         numeric[index] = (losses.view_loss(name, bumped, target, np.mean) - loss) / step
     assert np.allclose(grad, numeric, atol=1e-4 * np.abs(grad).max())
+
+
+def test_ssim_term_counts_haze_that_squared_errors_barely_see():
+    target = np.zeros((24, 32))
+    target[6:18, 10:22] = 1.0  # a bright square on black
+    t = target / target.mean()
+    similarity, grad = losses.ssim_term(t, t)
+    assert similarity == pytest.approx(1.0) and np.abs(grad).max() < 1e-9  # a maximum
+    hazy = target + 0.02  # a faint haze: 2 % of the square's brightness everywhere
+    h = hazy / hazy.mean()
+    no_image = losses.si_mse(np.ones_like(target), target, np.mean)
+    assert losses.si_mse(hazy, target, np.mean) < 0.02 * no_image
+    assert losses.ssim_term(h, t)[0] < 0.7
 
 
 def test_cyclic_schedule_visits_one_view_per_step():
