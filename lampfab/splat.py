@@ -5,7 +5,8 @@ from the LED through the fixed inner layer once.  Each step then needs a single
 intersection with the outer mesh, Snell's law at the hit facet, the wall plane, and a
 splat into each wall's image (bilinear on a finer grid, summed per pixel).  Every photon
 counts (no camera connection), and the photon set is fixed for a step, so the objective
-has no Monte Carlo noise within a step.  Fresnel reflections are left out of the gradient; verify traces them.
+has no Monte Carlo noise within a step.  Fresnel reflections are left out of the
+gradient; verify traces them.
 
 Bit-reproducible: Dr.Jit computes only per-photon quantities (where a photon lands, and
 its derivative with respect to the three corners of the facet it crossed).  Every sum
