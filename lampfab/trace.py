@@ -177,8 +177,9 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     Returns (per-wall flux images (rows, cols) float64, {"shares": [...], "lost": f,
     "trapped": f, "ghosts": [...]}) with flux as a fraction of the emitted light;
     ``ghosts`` are the part of each image that was reflected inside the lens at least
-    once (Fresnel ghosts: what no outer surface steers, since it follows other paths).  The per-pixel sums
-    run in numpy in a fixed order, so a seed gives the same images every time.
+    once (Fresnel ghosts: what no outer surface steers, since it follows other paths).
+    The per-pixel sums run in numpy in a fixed order, so a seed gives the same images
+    every time.
     """
     import drjit as dr
 
@@ -204,6 +205,7 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
         trapped += propagate(mi, scene.scene, o, d, ior, batch_seed, max_bounces, land)
         done += n
         batch_index += 1
+
     def per_wall(c):
         return [img.reshape(s) for img, s in zip(np.split(c / photons, np.cumsum(sizes)[:-1]), shapes)]
 
