@@ -69,9 +69,13 @@ def barycentric_map(source: np.ndarray, target: np.ndarray, x1: np.ndarray, x2: 
         if eps <= eps_final:
             break
         eps = max(eps * 0.5, eps_final)
-    # How far the plan's target marginal is from the target (0 when converged).
-    marginal_error = float(np.abs(np.exp(g / eps + _apply(f / eps, c1.T, c2.T, eps)) - b).sum())
+    # The maps below send each source cell's whole mass by its row of the plan, normalized
+    # with g alone: how far that plan's target marginal is from the target (L1, 0 when
+    # converged) is how much light they misplace.
     base = _apply(g / eps, c1, c2, eps)
+    with np.errstate(divide="ignore"):
+        sent = np.exp(g / eps + _apply((log_a - base), c1.T, c2.T, eps))
+    marginal_error = float(np.abs(sent - b).sum())
     y1_map = np.exp(_apply(g / eps + np.log(y1)[:, None], c1, c2, eps) - base)
     y2_map = np.exp(_apply(g / eps + np.log(y2)[None, :], c1, c2, eps) - base)
     return y1_map, y2_map, marginal_error, (f, g)

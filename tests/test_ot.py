@@ -23,6 +23,24 @@ def test_transport_map_pushes_uniform_light_onto_a_disc():
     assert np.all(np.diff(y1, axis=0) > -1e-6) and np.all(np.diff(y2, axis=1) > -1e-6)
 
 
+def test_marginal_error_measures_the_light_an_unconverged_transport_misplaces():
+    n = 32
+    grid = (np.arange(n) + 0.5) / n + 1.0  # positive: the maps take logs of coordinates
+    target = np.zeros((n, n))
+    target[20:28, 4:12] = 1.0  # a square far from the source's middle
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        converged = ot.barycentric_map(np.ones((n, n)), target, grid, grid, grid, grid, (1 / n) ** 2)
+        cold = (np.zeros((n, n)), np.zeros((n, n)))  # zero potentials: no annealing either
+        stopped = ot.barycentric_map(np.ones((n, n)), target, grid, grid, grid, grid, (1 / n) ** 2,
+                                     iterations=5, warm=cold)
+    for y1, y2, err, _ in (converged, stopped):
+        pushed, _, _ = np.histogram2d(y1.ravel(), y2.ravel(), bins=[n, n], range=[[1, 2], [1, 2]])
+        misplaced = np.abs(pushed / pushed.sum() - target / target.sum()).sum()  # L1, as the error
+        assert err == pytest.approx(misplaced, abs=0.05)
+    assert converged[2] < 0.05 < 0.5 < stopped[2]
+
+
 def test_scale_independent_loss_ignores_brightness(rng):
     render, target = rng.random((8, 8)), rng.random((8, 8))
     a = losses.si_mse(render, target, np.mean)

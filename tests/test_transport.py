@@ -158,7 +158,10 @@ def test_transport_alone_projects_the_target(tiny_design, inner_layer):
         targets.append(((xx - cols / 2 + 0.5) ** 2 + (yy - rows / 2 + 0.5) ** 2 < (0.35 * rows) ** 2).astype(float))
     cyl = surface.Cylinder(45.0, 90.0, creased=True)
     heights, figures = transport.design(cyl, walls, targets, *inner_layer, light, 1.5, (32, 9), 2, 3, 60_000,
-                                        1e-2, 20.0, 45.0, seed=0, corrections=1, dump_share=0.1, log=lambda m: None)
+                                        1e-2, 20.0, 45.0, seed=0, corrections=2, dump_share=0.1, log=lambda m: None)
+    # Each correction pass starts from light that lands closer to the target than before.
+    first, second = (p["landed_density_error"] for p in figures["passes"][1:])
+    assert all(second[w.name] < first[w.name] for w in walls)
     assert figures["max_tilt_deg"] <= 45.0
     assert np.abs(heights).max() <= 20.0
     from lampfab import lens, metrics
