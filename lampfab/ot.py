@@ -74,7 +74,7 @@ def barycentric_map(source: np.ndarray, target: np.ndarray, x1: np.ndarray, x2: 
     # converged) is how much light they misplace.
     base = _apply(g / eps, c1, c2, eps)
     with np.errstate(divide="ignore"):
-        sent = np.exp(g / eps + _apply((log_a - base), c1.T, c2.T, eps))
+        sent = np.exp(g / eps + _apply(log_a - base, c1.T, c2.T, eps))
     marginal_error = float(np.abs(sent - b).sum())
     y1_map = np.exp(_apply(g / eps + np.log(y1)[:, None], c1, c2, eps) - base)
     y2_map = np.exp(_apply(g / eps + np.log(y2)[None, :], c1, c2, eps) - base)
