@@ -145,21 +145,22 @@ class SplatOptimizer(Optimizer):
         x0, y0 = np.floor(np.where(ok, xf, 0.0)), np.floor(np.where(ok, yf, 0.0))
         fx, fy = np.where(ok, xf - x0, 0.0), np.where(ok, yf - y0, 0.0)
         weight = 1.0 / self.opt.splat_photons
-        image = np.zeros(fine_rows * fine_cols)
-        if grad_image is not None:
-            grad_fine = np.repeat(np.repeat(grad_image.reshape(rows, cols), s, axis=0), s, axis=1).ravel()
-        gx, gy = np.zeros(len(x)), np.zeros(len(x))
+        if grad_image is None:
+            image = np.zeros(fine_rows * fine_cols)
+        else:
+            gx, gy = np.zeros(len(x)), np.zeros(len(x))
         for dx, dy, w, dw_dx, dw_dy in ((0, 0, (1 - fx) * (1 - fy), -(1 - fy), -(1 - fx)),
                                         (1, 0, fx * (1 - fy), 1 - fy, -fx),
                                         (0, 1, (1 - fx) * fy, -fy, 1 - fx),
                                         (1, 1, fx * fy, fy, fx)):
             cx, cy = x0.astype(np.int64) + dx, y0.astype(np.int64) + dy
             inside = ok & (cx >= 0) & (cx < fine_cols) & (cy >= 0) & (cy < fine_rows)
-            pixel = np.where(inside, cy * fine_cols + cx, 0)
             if grad_image is None:
+                pixel = np.where(inside, cy * fine_cols + cx, 0)
                 image += np.bincount(pixel, weights=np.where(inside, weight * w, 0.0), minlength=image.size)
             else:
-                g = np.where(inside, weight * grad_fine[pixel], 0.0)
+                pixel = np.where(inside, (cy // s) * cols + cx // s, 0)  # the image pixel holding it
+                g = np.where(inside, weight * grad_image[pixel], 0.0)
                 gx += g * dw_dx
                 gy += g * dw_dy
         if grad_image is not None:
