@@ -68,8 +68,8 @@ class Optimize:
     grid_v: int = _spec(64, 4, 4096, doc="heightmap nodes up (final level)")
     levels: int = _spec(2, 1, 4, doc="coarse-to-fine levels, x4 in u and v between levels")
     iterations: int = _spec(0, 0, 1_000_000, doc="gradient steps in all, split over levels")
-    loss: str = _spec("si_mse", choices=("si_mse", "si_mse_ssim", "l1_joint", "l1_weighted"),
-                      doc="per-view loss (si_mse_ssim: splat only)")
+    loss: str = _spec("si_mse", choices=("si_mse", "si_mse_ssim", "multiscale", "l1_joint", "l1_weighted"),
+                      doc="per-view loss (si_mse_ssim, multiscale: splat only)")
     loss_weights: tuple = _spec((), doc="weights for l1_weighted, one per wall")
     schedule: str = _spec("cyclic", choices=("cyclic", "joint"), doc="one view per step or all")
     step: str = _spec("adam", choices=("adam", "gd"), doc="update rule")
@@ -261,8 +261,8 @@ def _check_design(d: Design, path: Path) -> None:
         raise LampfabError(f"{path}: [room] walls lists a wall twice")
     if "floor" in room.walls and room.floor_depth_mm <= lens.light_height_mm:
         raise LampfabError(f"{path}: [room] floor_depth_mm must exceed light_height_mm (the floor is below the lamp)")
-    if opt.loss == "si_mse_ssim" and opt.method != "splat":
-        raise LampfabError(f"{path}: [optimize] loss \"si_mse_ssim\" needs method \"splat\" (the {opt.method} "
+    if opt.loss in ("si_mse_ssim", "multiscale") and opt.method != "splat":
+        raise LampfabError(f"{path}: [optimize] loss \"{opt.loss}\" needs method \"splat\" (the {opt.method} "
                            f"method takes si_mse, l1_joint or l1_weighted)")
     if opt.loss == "l1_weighted" and len(opt.loss_weights) != len(room.walls):
         raise LampfabError(f"{path}: [optimize] loss_weights needs one weight per wall ({len(room.walls)})")

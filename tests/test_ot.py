@@ -48,7 +48,7 @@ def test_scale_independent_loss_ignores_brightness(rng):
     assert losses.si_mse(target, target, np.mean) == 0.0
 
 
-@pytest.mark.parametrize("name", ["si_mse", "si_mse_ssim", "l1_weighted"])
+@pytest.mark.parametrize("name", ["si_mse", "si_mse_ssim", "multiscale", "l1_weighted"])
 def test_numpy_loss_gradients_match_finite_differences(rng, name):
     render, target = rng.random((6, 7)) + 0.05, rng.random((6, 7))
     target[:2] = 0.0  # dark rows, as in a silhouette
@@ -74,6 +74,22 @@ def test_ssim_term_counts_haze_that_squared_errors_barely_see():
     no_image = losses.si_mse(np.ones_like(target), target, np.mean)
     assert losses.si_mse(hazy, target, np.mean) < 0.02 * no_image
     assert losses.ssim_term(h, t)[0] < 0.7
+
+
+def test_multiscale_loss_pulls_light_across_a_dark_gap():
+    """A spot lit 8 px from where the target wants it: the per-pixel losses are flat in
+    the dark between the two (moving light there changes nothing), the blurred terms
+    slope down towards the target all the way."""
+    target, render = np.zeros((16, 32)), np.full((16, 32), 1e-3)
+    target[6:10, 20:24] = 1.0
+    render[6:10, 8:12] = 1.0
+    row = 8
+    for name in ("si_mse", "si_mse_ssim"):
+        grad = losses.view_loss_and_grad(name, render, target)[1]
+        assert np.ptp(grad[row, 13:19]) < 0.01 * np.abs(grad).max()
+    grad = losses.view_loss_and_grad("multiscale", render, target)[1]
+    assert np.all(np.diff(grad[row, 12:20]) < 0)
+    assert grad[row, 12] - grad[row, 19] > 0.3 * np.abs(grad).max()
 
 
 def test_cyclic_schedule_visits_one_view_per_step():
