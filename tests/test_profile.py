@@ -22,6 +22,7 @@ def test_bundled_fabrication_profiles_load(name):
     ("[lens]\nouter_radius_mm = 'big'\n", ["outer_radius_mm", "expected a number"]),
     ("[optimize]\nloss = 'l2'\n", ["loss", "si_mse"]),
     ("[optimize]\nmethod = 'seed'\nloss = 'si_mse_ssim'\n", ["[optimize] loss", "si_mse_ssim", "splat"]),
+    ("[optimize]\nmethod = 'seed'\nloss = 'multiscale'\n", ["[optimize] loss", "multiscale", "splat"]),
     ("[room]\nwalls = ['ceiling']\n", ["walls", "ceiling", "front"]),
     ("[lens]\nouter_radius_mm = 60\n[room]\nwall_distance_mm = 110\n", ["walls behind or inside the lamp"]),
     ("[lens]\nlight_height_mm = 200\n", ["light_height_mm", "inside the lens"]),
