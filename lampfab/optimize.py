@@ -147,9 +147,11 @@ class Optimizer:
         """The step on the level's grid (mm), by plain gradient descent or Adam.
 
         ``learning_rate`` is for the coarsest level; finer levels step in proportion to
-        their node spacing, so every level tilts the surface by as much per step."""
+        their node spacing times ``fine_level_rate``, so they tilt the surface by that
+        fraction of the coarsest level's tilt per step."""
         spacing = grad.shape[0] / (self.opt.grid_u // 4 ** (self.opt.levels - 1))
-        lr = self.opt.learning_rate * state.lr_scale / spacing
+        level_rate = self.opt.fine_level_rate if spacing > 1 else 1.0
+        lr = self.opt.learning_rate * state.lr_scale * level_rate / spacing
         if self.opt.step == "gd":
             return -lr * grad
         b1, b2, eps = 0.9, 0.999, 1e-12

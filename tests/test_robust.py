@@ -273,6 +273,15 @@ def _run(opt, state=None):
     return state, messages, checkpoints
 
 
+def test_finer_levels_step_at_their_rate(tiny_design):
+    runner = Quadratic(tiny_design, {})
+    runner.opt = dataclasses.replace(runner.opt, levels=2, fine_level_rate=0.5)
+    nu, nv = runner.opt.grid_u, runner.opt.grid_v
+    state = optimize.State(np.zeros((nu, nv)), 0, 0)
+    assert runner.step_delta(state, np.ones((nu // 4, nv // 4))) == pytest.approx(-0.1)
+    assert runner.step_delta(state, np.ones((nu, nv))) == pytest.approx(-0.1 * 0.5 / 4)  # spacing 4, rate 0.5
+
+
 @pytest.mark.parametrize("bad_loss, words", [(float("nan"), "the loss is nan"), (float("inf"), "the loss is inf"),
                                               (1e9, "the loss exploded")])
 def test_a_fault_falls_back_to_the_last_checkpoint_with_a_smaller_step(tiny_design, bad_loss, words):
