@@ -37,8 +37,8 @@ SSIM_WEIGHT = 1.0
 # Blur scales (pixels) and the weight of their squared errors against si_mse.  Measured on
 # the horse (default profile, same transport design; bench/RESULTS.md), min r 0.928 before:
 # 2-8 px at weight 4 and 16 gave 0.935 and 0.937 (16 with learning rate 0.04: 0.941),
-# 4-16 px at 10 gave 0.934, 2-4 px at 1 gave 0.930.  Blurring shrinks the errors, so the
-# weight is large.
+# 4-16 px at 10 gave 0.934, 2-4 px at 1 gave 0.930; 32 with the default profile's rates
+# fell back to 0.930 from 0.940.  Blurring shrinks the errors, so the weight is large.
 BLUR_SIGMAS_PX = (2.0, 4.0, 8.0)
 BLUR_WEIGHT = 16.0
 
