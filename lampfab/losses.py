@@ -23,10 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import metrics
-
-LOSSES = ("si_mse", "si_mse_ssim", "multiscale", "l1_joint", "l1_weighted")
-NUMPY_ONLY_LOSSES = ("si_mse_ssim", "multiscale")
-SCHEDULES = ("cyclic", "joint")
+from .profile import NUMPY_ONLY_LOSSES
 
 # Weight of (1 - SSIM) against si_mse.  Measured on the apple and the star (default
 # profile, 40 steps, same transport design; bench/RESULTS.md): 0.5 and 1.0 both raise
@@ -99,7 +96,7 @@ def l1(render, target, mean):
 
 
 def view_loss(name: str, render, target, mean, weight: float = 1.0):
-    """One view's contribution to the loss named ``name`` (see LOSSES)."""
+    """One view's contribution to the loss named ``name`` (see ``profile.LOSSES``)."""
     if name == "si_mse":
         return si_mse(render, target, mean)
     if name in NUMPY_ONLY_LOSSES:

@@ -19,6 +19,11 @@ from .errors import LampfabError
 PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
 WALL_NAMES = ("front", "left", "right", "floor")
 LENS_KINDS = ("cylinder", "panel")
+# Per-view losses (lampfab.losses computes them) and view schedules.  The numpy-only ones
+# need whole images, so only the splat refinement takes them.
+LOSSES = ("si_mse", "si_mse_ssim", "multiscale", "l1_joint", "l1_weighted")
+NUMPY_ONLY_LOSSES = ("si_mse_ssim", "multiscale")
+SCHEDULES = ("cyclic", "joint")
 
 
 def _spec(default, lo=None, hi=None, choices=None, doc=""):
@@ -68,10 +73,10 @@ class Optimize:
     grid_v: int = _spec(64, 4, 4096, doc="heightmap nodes up (final level)")
     levels: int = _spec(2, 1, 4, doc="coarse-to-fine levels, x4 in u and v between levels")
     iterations: int = _spec(0, 0, 1_000_000, doc="gradient steps in all, split over levels")
-    loss: str = _spec("si_mse", choices=("si_mse", "si_mse_ssim", "multiscale", "l1_joint", "l1_weighted"),
+    loss: str = _spec("si_mse", choices=LOSSES,
                       doc="per-view loss (si_mse_ssim, multiscale: splat only)")
     loss_weights: tuple = _spec((), doc="weights for l1_weighted, one per wall")
-    schedule: str = _spec("cyclic", choices=("cyclic", "joint"), doc="one view per step or all")
+    schedule: str = _spec("cyclic", choices=SCHEDULES, doc="one view per step or all")
     step: str = _spec("adam", choices=("adam", "gd"), doc="update rule")
     learning_rate: float = _spec(0.02, 1e-8, 100.0, doc="mm per step scale")
     fine_level_rate: float = _spec(1.0, 0.01, 4.0, doc="tilt per step of the finer levels against the coarsest's")
@@ -262,9 +267,9 @@ def _check_design(d: Design, path: Path) -> None:
         raise LampfabError(f"{path}: [room] walls lists a wall twice")
     if "floor" in room.walls and room.floor_depth_mm <= lens.light_height_mm:
         raise LampfabError(f"{path}: [room] floor_depth_mm must exceed light_height_mm (the floor is below the lamp)")
-    if opt.loss in ("si_mse_ssim", "multiscale") and opt.method != "splat":
+    if opt.loss in NUMPY_ONLY_LOSSES and opt.method != "splat":
         raise LampfabError(f"{path}: [optimize] loss \"{opt.loss}\" needs method \"splat\" (the {opt.method} "
-                           f"method takes si_mse, l1_joint or l1_weighted)")
+                           f"method takes {', '.join(n for n in LOSSES if n not in NUMPY_ONLY_LOSSES)})")
     if opt.loss == "l1_weighted" and len(opt.loss_weights) != len(room.walls):
         raise LampfabError(f"{path}: [optimize] loss_weights needs one weight per wall ({len(room.walls)})")
     coarse = 4 ** (opt.levels - 1)
