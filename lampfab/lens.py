@@ -1,8 +1,11 @@
 """The lens as the optics see it: outer surface and caps, with the inner layer as a void.
 
-The LED bore through the base (solid stage) is left out here: it only passes light
-that leaves downwards below the inner layer, which no projection surface receives.
-verify traces the exported STL, bore included.
+The LED bore through the base (solid stage) is left out here, so the mesh is cheap to
+rebuild at every step of the seed method.  Without the bore, glass stays under the
+cavity's floor and reflects a little light back up, a faint spot near a wall's centre
+that the made lens does not have.  Figures that must be the made lens's trace the
+solid: verify the exported STL, the plan and the tolerance study
+``pipeline._made_lens``.
 """
 
 from __future__ import annotations

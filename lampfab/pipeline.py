@@ -311,12 +311,23 @@ def plan(build: Build) -> dict:
 @_per_kind
 def _plain_optics(build: Build):
     """(the un-optimized lens as a ``trace.MeshScene``, its light's emitter: None for the LED)."""
-    from . import lens, trace
+    from . import trace
+
+    grid = (build.design.optimize.grid_u, build.design.optimize.grid_v)
+    return trace.MeshScene(*_made_lens(build, np.zeros(grid))), None
+
+
+def _made_lens(build: Build, heights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The solid the solid stage would make from ``heights``: (vertices (n, 3) mm, faces (m, 3)).
+
+    Traced where a figure must be the made lens's: its bore through the base removes
+    the glass under the cavity's floor, whose reflections would otherwise light a spot."""
+    from . import solid as solid_mod
 
     iv, if_ = build.inner()
-    grid = (build.design.optimize.grid_u, build.design.optimize.grid_v)
-    verts, faces = lens.optical_mesh(build.cylinder, np.zeros(grid), build.design.optimize.tessellation, iv, if_)
-    return trace.MeshScene(verts, faces), None
+    s = solid_mod.build_solid(build.cylinder, heights, build.design.optimize.tessellation, iv, if_,
+                              build.fab.mount_radius_mm)
+    return s.vertices, s.faces
 
 
 # -- 3a. init (transport) -------------------------------------------------------------
@@ -611,8 +622,7 @@ def _finishing(build: Build) -> dict:
     from . import guidance, tolerance_study
 
     d, v, fab = build.design, build.design.verify, build.fab
-    iv, if_ = build.inner()
-    study = tolerance_study.study(build.cylinder, load_heights(build), d.optimize.tessellation, iv, if_, build.light,
+    study = tolerance_study.study(build.cylinder, load_heights(build), lambda h: _made_lens(build, h), build.light,
                                   fab.ior, build.walls, build.targets(v.image_px), max(v.photons // 4, 10_000),
                                   d.optimize.seed + 11, v.max_bounces, fab.surface_error_mm)
     _log(f"verify: polishing allowance {'>= ' if study['allowance_at_least'] else ''}"

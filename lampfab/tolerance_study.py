@@ -51,13 +51,13 @@ def error_field(cyl: surface.Cylinder, shape: tuple[int, int], correlation_mm: f
     return field / np.abs(field).max()
 
 
-def study(cyl: surface.Cylinder, heights: np.ndarray, tessellation: int, inner_vertices: np.ndarray,
-          inner_faces: np.ndarray, light_mm: np.ndarray, ior: float, walls: list[Wall],
-          targets: list[np.ndarray], photons: int, seed: int, max_bounces: int,
+def study(cyl: surface.Cylinder, heights: np.ndarray, lens_mesh, light_mm: np.ndarray, ior: float,
+          walls: list[Wall], targets: list[np.ndarray], photons: int, seed: int, max_bounces: int,
           profile_error_mm: float) -> dict:
     """Trace the lens at each amplitude of one error field; r against each target.
 
-    heights (nu, nv) mm; inner layer (n, 3) mm / (m, 3) int wound outward; light (3,) mm
+    heights (nu, nv) mm; ``lens_mesh(heights)`` -> ((n, 3) mm, (m, 3) int): the closed lens
+    to trace, wound outward (the made solid: its bore changes the ghosts); light (3,) mm
     (a point light); targets: one (rows, cols) image per wall, the render's shape.
     Returns {"amplitudes_mm": [0, ...] (ascending), "walls": {name: [r per amplitude]},
     "max_drop": [largest r drop over the walls per amplitude], "allowance_mm": largest
@@ -65,14 +65,14 @@ def study(cyl: surface.Cylinder, heights: np.ndarray, tessellation: int, inner_v
     the largest amplitude stays within it, "profile_error_mm", "profile_error_drop",
     "correlation_mm", "photons", "r_drop"}.
     """
-    from . import lens, trace
+    from . import trace
 
     amplitudes = sorted({0.0, *AMPLITUDES_MM, float(profile_error_mm)})
     field = error_field(cyl, heights.shape, CORRELATION_MM, seed)
     shapes = [t.shape for t in targets]
     per_wall = {w.name: [] for w in walls}
     for a in amplitudes:
-        verts, faces = lens.optical_mesh(cyl, heights + a * field, tessellation, inner_vertices, inner_faces)
+        verts, faces = lens_mesh(heights + a * field)
         images, _ = trace.render_walls(trace.MeshScene(verts, faces), light_mm, 0.0, ior, walls, shapes,
                                        photons, seed, max_bounces)
         for wall, img, target in zip(walls, images, targets):

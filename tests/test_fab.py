@@ -68,7 +68,8 @@ def study_setup():
 def test_tolerance_study_finds_where_the_image_degrades(study_setup, monkeypatch):
     v, f, light, walls, target = study_setup
     monkeypatch.setattr(tolerance_study, "AMPLITUDES_MM", (0.05, 3.0))
-    res = tolerance_study.study(CYL, bumps(), 2, v, f, light, 1.5, walls, target, 40_000, 5, 8, 0.02)
+    res = tolerance_study.study(CYL, bumps(), lambda h: lens.optical_mesh(CYL, h, 2, v, f), light, 1.5, walls,
+                                target, 40_000, 5, 8, 0.02)
     assert res["amplitudes_mm"] == [0.0, 0.02, 0.05, 3.0]
     r = res["walls"]["front"]
     assert r[0] == pytest.approx(1.0)                       # same lens, same photons as the target
