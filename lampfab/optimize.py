@@ -91,6 +91,18 @@ def level_steps(opt: Optimize) -> list[int]:
     return base
 
 
+def anneal_factor(opt: Optimize, step: int) -> float:
+    """How much of its step the finest level takes at ``step`` (0-based) under
+    ``fine_level_anneal``: whole steps for the first half of the level, then falling
+    linearly to 2/n at its last of n steps; 1 at every other step, and always without
+    the option."""
+    steps = level_steps(opt)
+    start = sum(steps[:-1])
+    if not opt.fine_level_anneal or step < start:
+        return 1.0
+    return min(1.0, 2.0 * (1.0 - (step - start) / steps[-1]))
+
+
 class Interrupted(Exception):
     """SIGINT/SIGTERM arrived; the state at ``step`` was checkpointed."""
 
@@ -148,10 +160,12 @@ class Optimizer:
 
         ``learning_rate`` is for the coarsest level; finer levels step in proportion to
         their node spacing times ``fine_level_rate``, so they tilt the surface by that
-        fraction of the coarsest level's tilt per step."""
+        fraction of the coarsest level's tilt per step, scaled down towards the end by
+        ``anneal_factor``."""
         spacing = grad.shape[0] / (self.opt.grid_u // 4 ** (self.opt.levels - 1))
         level_rate = self.opt.fine_level_rate if spacing > 1 else 1.0
-        lr = self.opt.learning_rate * state.lr_scale * level_rate / spacing
+        lr = (self.opt.learning_rate * state.lr_scale * level_rate / spacing
+              * anneal_factor(self.opt, state.step))
         if self.opt.step == "gd":
             return -lr * grad
         b1, b2, eps = 0.9, 0.999, 1e-12

@@ -80,6 +80,8 @@ class Optimize:
     step: str = _spec("adam", choices=("adam", "gd"), doc="update rule")
     learning_rate: float = _spec(0.02, 1e-8, 100.0, doc="mm per step scale")
     fine_level_rate: float = _spec(1.0, 0.01, 4.0, doc="tilt per step of the finer levels against the coarsest's")
+    fine_level_anneal: bool = _spec(False, doc="the finest level's second half shrinks its step linearly "
+                                                "towards zero: its last steps average the photon noise out")
     sensor_px: int = _spec(64, 8, 2048, doc="sensor width in pixels (height from the aspect)")
     spp: int = _spec(16, 1, 65536, doc="ptracer samples per pixel per step (seed)")
     splat_photons: int = _spec(1_000_000, 1000, 100_000_000, doc="photons per step (splat)")

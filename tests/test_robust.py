@@ -282,6 +282,24 @@ def test_finer_levels_step_at_their_rate(tiny_design):
     assert runner.step_delta(state, np.ones((nu, nv))) == pytest.approx(-0.1 * 0.5 / 4)  # spacing 4, rate 0.5
 
 
+def test_the_finest_level_anneals_its_step_to_the_last(tiny_design):
+    runner = Quadratic(tiny_design, {})
+    runner.opt = dataclasses.replace(runner.opt, levels=2, iterations=14, fine_level_anneal=True)
+    nu, nv = runner.opt.grid_u, runner.opt.grid_v
+
+    def step_at(step, grid):
+        return runner.step_delta(optimize.State(np.zeros((nu, nv)), level=0, step=step), np.ones(grid))
+
+    coarse = (nu // 4, nv // 4)
+    assert step_at(0, coarse) == pytest.approx(-0.1) and step_at(6, coarse) == pytest.approx(-0.1)
+    assert step_at(7, (nu, nv)) == pytest.approx(-0.1 / 4)             # the fine level's first step: whole
+    assert step_at(13, (nu, nv)) == pytest.approx(-0.1 / 4 * 2 / 7)    # its last of 7: two sevenths
+    factors = [optimize.anneal_factor(runner.opt, k) for k in range(14)]
+    assert factors == pytest.approx([1] * 7 + [1, 1, 1, 1, 6 / 7, 4 / 7, 2 / 7])
+    without = dataclasses.replace(runner.opt, fine_level_anneal=False)
+    assert [optimize.anneal_factor(without, k) for k in range(14)] == [1.0] * 14
+
+
 @pytest.mark.parametrize("bad_loss, words", [(float("nan"), "the loss is nan"), (float("inf"), "the loss is inf"),
                                               (1e9, "the loss exploded")])
 def test_a_fault_falls_back_to_the_last_checkpoint_with_a_smaller_step(tiny_design, bad_loss, words):
