@@ -3,8 +3,8 @@
 The LED bore through the base (solid stage) is left out here, so the mesh is cheap to
 rebuild at every step of the seed method.  Without the bore, glass stays under the
 cavity's floor and reflects a little light back up, a faint spot near a wall's centre
-that the made lens does not have.  Figures that must be the made lens's trace the
-solid: verify the exported STL, the plan and the tolerance study
+that the made lens does not have.  Figures that must describe the made lens trace the
+solid instead: verify traces the exported STL, the plan and the tolerance study
 ``pipeline._made_lens``.
 """
 
