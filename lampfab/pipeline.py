@@ -314,20 +314,25 @@ def _plain_optics(build: Build):
     from . import trace
 
     grid = (build.design.optimize.grid_u, build.design.optimize.grid_v)
-    return trace.MeshScene(*_made_lens(build, np.zeros(grid))), None
+    plain = _solid_maker(build)(np.zeros(grid))
+    return trace.MeshScene(plain.vertices, plain.faces), None
 
 
-def _made_lens(build: Build, heights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The solid the solid stage would make from ``heights``: (vertices (n, 3) mm, faces (m, 3)).
+def _solid_maker(build: Build):
+    """``make(heights)``: the lens solid (``solid.Solid``, mm) the solid stage builds from
+    (nu, nv) heights in mm, the inner layer loaded once for every call.
 
-    Traced where a figure must be the made lens's: its bore through the base removes
-    the glass under the cavity's floor, whose reflections would otherwise light a spot."""
+    The plan and the tolerance study trace it too, not the bore-less optical mesh: the
+    bore through the base removes the glass under the cavity's floor, whose reflections
+    would otherwise light a spot on a wall."""
     from . import solid as solid_mod
 
     iv, if_ = build.inner()
-    s = solid_mod.build_solid(build.cylinder, heights, build.design.optimize.tessellation, iv, if_,
-                              build.fab.mount_radius_mm)
-    return s.vertices, s.faces
+
+    def make(heights: np.ndarray):
+        return solid_mod.build_solid(build.cylinder, heights, build.design.optimize.tessellation, iv, if_,
+                                     build.fab.mount_radius_mm)
+    return make
 
 
 # -- 3a. init (transport) -------------------------------------------------------------
@@ -460,12 +465,8 @@ def load_heights(build: Build) -> np.ndarray:
 @_per_kind
 def solid(build: Build) -> dict:
     """Outer shell minus inner layer and LED bore: one watertight solid in mm."""
-    from . import solid as solid_mod
-
     report = build.begin("solid", {"heightmap": build.path("heightmap.npz")})
-    iv, if_ = build.inner()
-    s = solid_mod.build_solid(build.cylinder, load_heights(build), build.design.optimize.tessellation,
-                              iv, if_, build.fab.mount_radius_mm)
+    s = _solid_maker(build)(load_heights(build))
     artifacts.write_npz(build.path("solid.npz"), vertices=s.vertices, faces=s.faces)
     report.figure(volume_mm3=s.volume_mm3, triangles=int(len(s.faces)), genus=s.genus,
                   bore=dataclasses.asdict(s.bore))
@@ -622,7 +623,13 @@ def _finishing(build: Build) -> dict:
     from . import guidance, tolerance_study
 
     d, v, fab = build.design, build.design.verify, build.fab
-    study = tolerance_study.study(build.cylinder, load_heights(build), lambda h: _made_lens(build, h), build.light,
+    make = _solid_maker(build)
+
+    def lens_mesh(heights):
+        made = make(heights)
+        return made.vertices, made.faces
+
+    study = tolerance_study.study(build.cylinder, load_heights(build), lens_mesh, build.light,
                                   fab.ior, build.walls, build.targets(v.image_px), max(v.photons // 4, 10_000),
                                   d.optimize.seed + 11, v.max_bounces, fab.surface_error_mm)
     _log(f"verify: polishing allowance {'>= ' if study['allowance_at_least'] else ''}"
