@@ -72,6 +72,20 @@ def emit(mi, light_mm: np.ndarray, radius_mm: float, n: int, rng):
     return o + radius_mm * d, mi.Frame3f(d).to_world(local)
 
 
+def stratified_sphere(mi, n: int, seed: int):
+    """About ``n`` unit directions, one jittered inside each cell of an equal-area
+    (azimuth, height) grid on the sphere.  Returns (Dr.Jit directions, their count)."""
+    import drjit as dr
+
+    rows = max(1, int(round(np.sqrt(n / np.pi))))
+    cols = max(1, n // rows)
+    count = rows * cols
+    rng = mi.PCG32(count, dr.opaque(mi.UInt64, seed), dr.opaque(mi.UInt64, 0))
+    i = dr.arange(mi.UInt32, count)
+    u = mi.Point2f((mi.Float(i % cols) + rng.next_float32()) / cols, (mi.Float(i // cols) + rng.next_float32()) / rows)
+    return mi.warp.square_to_uniform_sphere(u), count
+
+
 def _take(cls, v, index):
     """Rows ``index`` of a Dr.Jit 3-vector array (stream compaction)."""
     import drjit as dr

@@ -70,3 +70,18 @@ def test_ghosts_are_the_reflected_part_of_the_light(plain_room):
     # Glass that matches the air reflects nothing.
     _, matched = trace.render_walls(scene, light, 0.0, 1.0 + 1e-6, walls, shapes, 200_000, seed=3)
     assert all(ghost.sum() == 0 for ghost in matched["ghosts"])
+
+
+def test_stratified_directions_cover_the_sphere_evenly(mi):
+    directions, count = trace.stratified_sphere(mi, 10_000, seed=5)
+    d = _np(directions)
+    assert abs(count - 10_000) < 100 and len(d) == count
+    assert np.allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-5)
+    # Every equal-area band of height holds the same number of directions: independent
+    # directions would put ~sqrt(count / bands) more or fewer in each.
+    bands = np.histogram(d[:, 2], bins=8, range=(-1, 1))[0]
+    assert bands.max() - bands.min() <= 0.01 * count / 8
+    # Their mean is far closer to zero than independent directions' (~1 / sqrt(count)).
+    assert np.linalg.norm(d.mean(axis=0)) < 0.1 / np.sqrt(count)
+    again, _ = trace.stratified_sphere(mi, 10_000, seed=6)
+    assert not np.allclose(_np(again), d)
