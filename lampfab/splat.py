@@ -2,12 +2,11 @@
 
 The light inside the glass does not depend on the outer surface: each step's photons
 leave the LED stratified over the sphere and are traced through the fixed inner layer
-once.  Each step then needs a single
-intersection with the outer mesh, Snell's law at the hit facet, the wall plane, and a
-splat into each wall's image (bilinear on a finer grid, summed per pixel).  Every photon
-counts (no camera connection), and the photon set is fixed for a step, so the objective
-has no Monte Carlo noise within a step.  Fresnel reflections are left out of the
-gradient; verify traces them.
+once.  The step then needs a single intersection with the outer mesh, Snell's law at
+the hit facet, the wall plane, and a splat into each wall's image (bilinear on a finer
+grid, summed per pixel).  Every photon counts (no camera connection), and the photon set
+is fixed for a step, so the objective has no Monte Carlo noise within a step.  Fresnel
+reflections are left out of the gradient; verify traces them.
 
 Bit-reproducible: Dr.Jit computes only per-photon quantities (where a photon lands, and
 its derivative with respect to the three corners of the facet it crossed).  Every sum
@@ -141,9 +140,9 @@ class SplatOptimizer(Optimizer):
                grad_image: np.ndarray | None = None):
         """Splat of photons of flux ``weight`` each at pixel coordinates (x, y) (k,) float64
         into a (rows*cols,) float64 flux image, summed in numpy: bilinear on a grid
-        ``SUPERSAMPLE`` times finer, then summed over each pixel's sub-pixels.  With ``grad_image`` (the loss's
-        gradient per pixel) returns instead the loss's gradient per photon with respect
-        to x and y: ((k,), (k,)) float64."""
+        ``SUPERSAMPLE`` times finer, then summed over each pixel's sub-pixels.  With
+        ``grad_image`` (the loss's gradient per pixel) returns instead the loss's gradient
+        per photon with respect to x and y: ((k,), (k,)) float64."""
         rows, cols = self.shapes[view]
         s = SUPERSAMPLE
         fine_rows, fine_cols = rows * s, cols * s

@@ -77,13 +77,16 @@ def stratified_sphere(mi, n: int, seed: int):
     (azimuth, height) grid on the sphere.  Returns (Dr.Jit directions, their count)."""
     import drjit as dr
 
+    # A cell spans 2 pi / cols of azimuth and 2 / rows of height: about square at the
+    # equator with pi times as many columns as rows.
     rows = max(1, int(round(np.sqrt(n / np.pi))))
     cols = max(1, n // rows)
     count = rows * cols
     rng = mi.PCG32(count, dr.opaque(mi.UInt64, seed), dr.opaque(mi.UInt64, 0))
     i = dr.arange(mi.UInt32, count)
-    u = mi.Point2f((mi.Float(i % cols) + rng.next_float32()) / cols, (mi.Float(i // cols) + rng.next_float32()) / rows)
-    return mi.warp.square_to_uniform_sphere(u), count
+    across = (mi.Float(i % cols) + rng.next_float32()) / cols
+    up = (mi.Float(i // cols) + rng.next_float32()) / rows
+    return mi.warp.square_to_uniform_sphere(mi.Point2f(across, up)), count
 
 
 def _take(cls, v, index):

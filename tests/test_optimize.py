@@ -42,6 +42,20 @@ def test_splat_gradient_matches_finite_differences(mi, tiny_design, inner_layer,
     assert predicted > 0 and measured == pytest.approx(predicted, rel=0.1)
 
 
+def test_splat_photons_are_stratified_so_steps_agree_closely(mi, tiny_design, inner_layer, tiny_setup):
+    """Two steps' photon sets (different seeds) render the same lens nearly alike: far
+    closer than independent photons, whose per-pixel counts differ by sqrt(2 N)."""
+    opt = _optimizer(splat.SplatOptimizer, tiny_design, inner_layer, tiny_setup, splat_photons=200_000)
+    h = np.random.default_rng(3).normal(scale=0.5, size=(tiny_design.optimize.grid_u, tiny_design.optimize.grid_v))
+    a, b = opt.render(h, 0, seed=1), opt.render(h, 0, seed=2)
+    assert not np.array_equal(a, b)
+    counts = a * opt.n_photons
+    lit = counts > 100
+    assert lit.sum() > 50
+    independent = np.sqrt(2 * counts[lit])
+    assert np.sqrt(np.mean(((a - b)[lit] * opt.n_photons) ** 2)) < 0.5 * np.sqrt(np.mean(independent**2))
+
+
 def test_splat_image_is_the_photon_count_per_pixel(tiny_design, inner_layer, tiny_setup):
     """A pattern that alternates pixel by pixel survives the splat (verify bins photons
     per pixel, so the loss must see what verify will); a tent one pixel wide would
