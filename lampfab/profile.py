@@ -84,7 +84,8 @@ class Optimize:
                                                 "towards zero: its last steps average the photon noise out")
     sensor_px: int = _spec(64, 8, 2048, doc="sensor width in pixels (height from the aspect)")
     spp: int = _spec(16, 1, 65536, doc="ptracer samples per pixel per step (seed)")
-    splat_photons: int = _spec(1_000_000, 1000, 100_000_000, doc="photons per step (splat)")
+    splat_photons: int = _spec(1_000_000, 1000, 100_000_000, doc="photons per step (splat), one per cell of an "
+                                                                     "even grid of directions: rounded down to fill it")
     tessellation: int = _spec(4, 1, 16, doc="mesh vertices per heightmap cell edge (the STL uses the same)")
     transport_rounds: int = _spec(4, 1, 20, doc="fitting steps per transport pass (a panel: position/normal rounds)")
     transport_photons: int = _spec(500_000, 10_000, 100_000_000, doc="photons the transport design traces")
