@@ -439,6 +439,7 @@ def optimize(build: Build) -> dict:
                                        build.path("optimization.gif"))
     report.figure(steps=int(state.step), resumed=resumed, gif_frames=frames,
                   numerical_faults=[{"step": int(a), "learning_rate_scale": b} for a, b in state.faults],
+                  backtracks=[{"step": int(a), "learning_rate_scale": b} for a, b in state.backtracks],
                   final_loss=float(log[-1, 3]) if len(log) else None,
                   median_step_s=float(np.median(log[:, 4])) if len(log) else None,
                   offset_min_mm=float(heights.min()), offset_max_mm=float(heights.max()))

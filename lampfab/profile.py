@@ -78,6 +78,8 @@ class Optimize:
     loss_weights: tuple = _spec((), doc="weights for l1_weighted, one per wall")
     schedule: str = _spec("cyclic", choices=SCHEDULES, doc="one view per step or all")
     step: str = _spec("adam", choices=("adam", "gd"), doc="update rule")
+    backtrack: bool = _spec(False, doc="a step after which the loss rises is taken again from where it "
+                                       "started, half as long (joint schedule)")
     learning_rate: float = _spec(0.02, 1e-8, 100.0, doc="mm per step scale")
     fine_level_rate: float = _spec(1.0, 0.01, 4.0, doc="tilt per step of the finer levels against the coarsest's")
     fine_level_anneal: bool = _spec(False, doc="the finest level's second half shrinks its step linearly "
@@ -275,6 +277,9 @@ def _check_design(d: Design, path: Path) -> None:
                            f"method takes {', '.join(n for n in LOSSES if n not in NUMPY_ONLY_LOSSES)})")
     if opt.loss == "l1_weighted" and len(opt.loss_weights) != len(room.walls):
         raise LampfabError(f"{path}: [optimize] loss_weights needs one weight per wall ({len(room.walls)})")
+    if opt.backtrack and opt.schedule != "joint":
+        raise LampfabError(f"{path}: [optimize] backtrack needs schedule \"joint\" (with one view per step, "
+                           f"one step's loss does not compare with the next)")
     coarse = 4 ** (opt.levels - 1)
     if opt.grid_u % (8 * coarse):
         raise LampfabError(f"{path}: [optimize] grid_u must be divisible by 8 x 4^(levels-1) = {8 * coarse} "

@@ -97,9 +97,11 @@ def test_seed_method_gives_a_finite_nonzero_gradient(mi, tiny_design, inner_laye
 
 def test_state_round_trips_through_arrays():
     state = optimize.State(np.arange(12.0).reshape(4, 3), level=1, step=7, lr_scale=0.5,
-                           m=np.ones((4, 3)), v=np.full((4, 3), 2.0), adam_t=3, log=[(0, 0, 1, 0.5, 0.1)])
+                           m=np.ones((4, 3)), v=np.full((4, 3), 2.0), adam_t=3, log=[(0, 0, 1, 0.5, 0.1)],
+                           backtracks=[(5, 0.5)])
     back = optimize.State.from_arrays(state.to_arrays())
     assert back.step == 7 and back.level == 1 and back.adam_t == 3 and back.lr_scale == 0.5
+    assert back.backtracks == [(5.0, 0.5)]
     assert np.array_equal(back.heights, state.heights) and np.array_equal(back.v, state.v)
     assert back.log == [(0.0, 0.0, 1.0, 0.5, 0.1)]
 

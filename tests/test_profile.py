@@ -23,6 +23,7 @@ def test_bundled_fabrication_profiles_load(name):
     ("[optimize]\nloss = 'l2'\n", ["loss", "si_mse"]),
     ("[optimize]\nmethod = 'seed'\nloss = 'si_mse_ssim'\n", ["[optimize] loss", "si_mse_ssim", "splat"]),
     ("[optimize]\nmethod = 'seed'\nloss = 'multiscale'\n", ["[optimize] loss", "multiscale", "splat"]),
+    ("[optimize]\nschedule = 'cyclic'\nbacktrack = true\n", ["[optimize] backtrack", "joint"]),
     ("[room]\nwalls = ['ceiling']\n", ["walls", "ceiling", "front"]),
     ("[lens]\nouter_radius_mm = 60\n[room]\nwall_distance_mm = 110\n", ["walls behind or inside the lamp"]),
     ("[lens]\nlight_height_mm = 200\n", ["light_height_mm", "inside the lens"]),

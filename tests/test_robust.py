@@ -253,7 +253,7 @@ class Quadratic(optimize.Optimizer):
     """Pulls every node to 1 mm; ``faults`` maps a call number to the loss it returns."""
 
     def __init__(self, design, faults, **changes):
-        opt = dataclasses.replace(design.optimize, levels=1, step="gd", learning_rate=0.1, **changes)
+        opt = dataclasses.replace(design.optimize, **{"levels": 1, "step": "gd", "learning_rate": 0.1, **changes})
         super().__init__(surface.Cylinder(45.0, 90.0), None, None, None, 1.49, room.walls(design), [], opt, 20.0, 45.0)
         self.faults, self.calls = faults, 0
 
@@ -321,6 +321,33 @@ def test_a_nan_gradient_is_a_fault_too(tiny_design):
     state, messages, _ = _run(opt)
     assert len(messages) == 1 and messages[0].startswith("step 2: the gradient has") and "NaN or Inf" in messages[0]
     assert state.step == 4 and np.all(np.isfinite(state.heights))
+
+
+def test_backtracking_halves_a_step_that_raises_the_loss(tiny_design):
+    # Plain descent on sum((h - 1)^2) at rate 1.5 overshoots (h - 1 -> -2 (h - 1)) and
+    # diverges; at 0.75 it converges.
+    changes = dict(iterations=8, checkpoint_every=100, learning_rate=1.5, schedule="joint")
+    plain, _, _ = _run(Quadratic(tiny_design, {}, **changes))
+    guarded, messages, _ = _run(Quadratic(tiny_design, {}, backtrack=True, **changes))
+    assert plain.faults  # the loss exploded
+    assert not guarded.faults and not messages
+    assert guarded.backtracks[0] == (1, 0.5)
+    assert [row[0] for row in guarded.log] == list(range(8))  # the rejected evaluation is a step too
+    losses = [row[3] for row in guarded.log]
+    assert losses[1] == pytest.approx(4 * losses[0])  # evaluated, then stepped over again from step 0
+    assert losses[2] == pytest.approx(losses[0] / 4)
+    assert np.abs(guarded.heights - 1).max() < 0.05
+
+
+def test_backtracking_starts_each_level_at_the_full_step(tiny_design):
+    runner = Quadratic(tiny_design, {}, iterations=8, checkpoint_every=100, learning_rate=1.5, schedule="joint",
+                       backtrack=True)
+    runner.opt = dataclasses.replace(runner.opt, levels=2)
+    seen = []
+    real = runner.step_delta
+    runner.step_delta = lambda state, grad: seen.append((state.step, state.lr_scale)) or real(state, grad)
+    _run(runner)
+    assert dict(seen)[4] == 1.0 and min(scale for _, scale in seen[:4]) < 1.0
 
 
 def test_a_fault_that_stays_stops_with_a_message(tiny_design):
