@@ -32,22 +32,25 @@ EXPLODE_FACTOR = 20.0
 # learning rate halved; after this many halvings in a row it stops with a message
 # (1/1024 of the profile's rate: a step that still fails is not a step-size problem).
 MAX_FALLBACKS = 10
-# Slopes may exceed the fabrication limit by this much between steps (a safety net:
-# the slope penalty keeps steps inside); the final surface is projected exactly.
-# Projecting every step to the limit undoes the steps.
+# Slopes may exceed the fabrication limits by this much between steps (a safety net:
+# the slope and overhang penalty keeps steps inside); the final surface is projected
+# exactly.  Projecting every step to the limit undoes the steps.
 STEP_SLACK_DEG = 10.0
-# The slope penalty starts this far below the limit, so the final projection has
-# little left to do.
+# The slope and overhang penalty starts this far below the limits, so the final
+# projection has little left to do.  Without the overhang in it, 0.7 % of the horse's
+# surface overhung the print's 45° by up to 10°, and the final projection raised its
+# loss from 3.57 to 5.14 (bench/RESULTS.md).
 PENALTY_MARGIN_DEG = 2.0
 # With ``backtrack``, a step is taken again, half as long, when the loss after it is
-# more than this fraction above the loss before it.  Adam's first steps on a level move
-# every node by the learning rate, whatever its gradient: from the transport design
-# the first raised the loss on nine of ten images (not the horse's), by 10 % (coffee)
-# to 13x (moon), and the clock's never came back down.  Later rises of 2-8 % are Adam at work and come back
-# down within a step or two (chelsea, apple).  Measured with the optimizer's own
-# renders on those ten transport designs (bench/RESULTS.md): 0.3 gave the same lenses
-# as 0.1 on three of four images; 0.01 (three times the photons' step-to-step spread of
-# 0.1-0.4 %) cost chelsea r 0.98 -> 0.92 and slowed the astronaut, coffee and camera.
+# more than this fraction above the loss before it. Adam's first steps on a level move
+# every node by the learning rate, whatever its gradient: from the transport design the
+# first raised the loss on nine of ten images (not the horse's), by 10 % (coffee) to 13x
+# (moon), and the clock's never came back down. Later rises of 2-8 % are Adam at work
+# and come back down within a step or two (chelsea, apple). Measured with the
+# optimizer's own renders on those ten transport designs (bench/RESULTS.md): 0.3 gave
+# the same lenses as 0.1 on three of four images; 0.01 (three times the photons'
+# step-to-step spread of 0.1-0.4 %) cost chelsea r 0.98 -> 0.92 and slowed the astronaut,
+# coffee and camera.
 RISE_TOLERANCE = 0.1
 # After each step kept, the learning rate grows back by this factor towards the
 # profile's, so one overshoot does not slow the rest of the level (without regrowth,
@@ -242,8 +245,9 @@ class Optimizer:
                 views = losses.views_for_step(opt.schedule, state.step, len(self.walls))
                 key = views[0] if len(views) == 1 else -1
                 loss, grad_full = self.gradient(state.heights, views, seed=opt.seed * 100_003 + state.step * 17)
-                penalty, penalty_grad = surface.slope_penalty(self.cyl, state.heights,
-                                                              self.max_tilt - PENALTY_MARGIN_DEG)
+                penalty, penalty_grad = surface.slope_penalty(
+                    self.cyl, state.heights, self.max_tilt - PENALTY_MARGIN_DEG,
+                    None if self.max_overhang is None else self.max_overhang - PENALTY_MARGIN_DEG)
                 loss += opt.slope_weight * penalty
                 grad_full = grad_full + opt.slope_weight * penalty_grad
                 grad = surface.sample_adjoint(self.cyl, grad_full, *grid)

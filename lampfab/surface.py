@@ -300,13 +300,15 @@ def slopes_deg(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int) -> tuple[np
     return tilt, np.degrees(np.arctan(r_z))
 
 
-def slope_penalty(cyl: Cylinder, heights: np.ndarray, max_tilt_deg: float,
+def slope_penalty(cyl: Cylinder, heights: np.ndarray, max_tilt_deg: float, max_rise_deg: float | None = None,
                   samples_per_cell: int = 2) -> tuple[float, np.ndarray]:
     """Mean squared excess of tan(tilt) over tan(max_tilt_deg) on a grid finer than the
-    nodes, and its exact gradient on the nodes ((nu, nv) per mm).
+    nodes, plus, with ``max_rise_deg`` (a print's overhang limit), that of dr/dz over
+    tan(max_rise_deg) where the surface faces down; and its exact gradient on the nodes
+    ((nu, nv) per mm).
 
-    Keeps a gradient-based optimizer inside the fabrication profile's slope limit
-    instead of projecting it back after every step."""
+    Keeps a gradient-based optimizer inside the fabrication profile's limits instead of
+    projecting it back after every step."""
     nu, nv = heights.shape
     mu, mv = fine_shape(nu, nv, samples_per_cell)
     p0, p1 = u_matrix(nu, mu, 0, cyl.creased), u_matrix(nu, mu, 1, cyl.creased)
@@ -316,5 +318,11 @@ def slope_penalty(cyl: Cylinder, heights: np.ndarray, max_tilt_deg: float,
     excess = np.maximum(t - np.tan(np.radians(max_tilt_deg)), 0.0)
     n = excess.size
     d_t = 2.0 * excess / n / np.maximum(t, 1e-12)
-    grad = p1.T @ (d_t * r_u / r**2) @ z0 + p0.T @ (d_t * r_z) @ z1 - p0.T @ (d_t * r_u**2 / r**3) @ z0
-    return float(np.sum(excess**2) / n), grad
+    d_rz = d_t * r_z
+    penalty = float(np.sum(excess**2) / n)
+    if max_rise_deg is not None:
+        rise_excess = np.maximum(r_z - np.tan(np.radians(max_rise_deg)), 0.0)
+        penalty += float(np.sum(rise_excess**2) / n)
+        d_rz = d_rz + 2.0 * rise_excess / n
+    grad = p1.T @ (d_t * r_u / r**2) @ z0 + p0.T @ d_rz @ z1 - p0.T @ (d_t * r_u**2 / r**3) @ z0
+    return penalty, grad

@@ -45,3 +45,27 @@ def test_slopes_of_a_cone_section(cyl):
     expected = np.degrees(np.arctan(0.5))
     assert np.allclose(tilt_z, expected, atol=1e-6)
     assert np.allclose(tilt, expected, atol=1e-6)
+
+
+@pytest.mark.parametrize("max_rise_deg", [None, 30.0])
+def test_slope_penalty_gradient_matches_finite_differences(cyl, rng, max_rise_deg):
+    heights = rng.normal(scale=3.0, size=(32, 9))
+    penalty, grad = surface.slope_penalty(cyl, heights, 40.0, max_rise_deg)
+    assert penalty > 0
+    step = 1e-6
+    for node in [(0, 0), (5, 3), (17, 8), (31, 4)]:
+        up, down = heights.copy(), heights.copy()
+        up[node] += step
+        down[node] -= step
+        numeric = (surface.slope_penalty(cyl, up, 40.0, max_rise_deg)[0]
+                   - surface.slope_penalty(cyl, down, 40.0, max_rise_deg)[0]) / (2 * step)
+        assert grad[node] == pytest.approx(numeric, rel=1e-4, abs=1e-10)
+
+
+def test_slope_penalty_counts_overhangs_only_when_asked(cyl):
+    # A cone widening upward at 35°: within a 40° tilt limit, past a 30° overhang limit.
+    z = np.linspace(0.0, cyl.height_mm, 9)
+    heights = np.tile((z - cyl.height_mm / 2) * np.tan(np.radians(35.0)), (32, 1))
+    assert surface.slope_penalty(cyl, heights, 40.0)[0] == 0.0
+    penalty, grad = surface.slope_penalty(cyl, heights, 40.0, 30.0)
+    assert penalty > 0 and np.abs(grad).max() > 0
