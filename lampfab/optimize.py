@@ -209,10 +209,11 @@ class Optimizer:
         NumericalFault after ``MAX_FALLBACKS`` halvings in a row.  With ``backtrack``, a
         step after which the loss rose by over ``RISE_TOLERANCE`` is taken again from
         the state before it with half the learning rate; each step kept grows the rate
-        back by ``REGROWTH``, up to the profile's, and each level starts at it.  The heights stay a
-        radial graph clipped to +-max_offset_mm, which the inner layer clears by
-        ``tolerances.MIN_GAP_MM`` (checked when it is loaded), so a step cannot make
-        the surface cross itself or the inner layer; the check stage measures the walls.
+        back by ``REGROWTH``, up to the profile's, and each level starts at it.  The
+        heights stay a radial graph clipped to +-max_offset_mm, which the inner layer
+        clears by ``tolerances.MIN_GAP_MM`` (checked when it is loaded), so a step cannot
+        make the surface cross itself or the inner layer; the check stage measures the
+        walls.
         """
         opt = self.opt
         grids = level_grids(opt)
