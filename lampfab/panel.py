@@ -115,20 +115,24 @@ def closed_mesh(shape: PanelShape, heights: np.ndarray, tessellation: int) -> tu
 
 
 def collimated_emitter(shape: PanelShape, divergence_deg: float = 0.0, behind_mm: float = 1.0):
-    """The beam: photons spread uniformly over the back face, ``behind_mm`` behind it,
-    travelling +y, each within a uniform cone of half-angle ``divergence_deg``.
+    """The beam: photons spread uniformly over the back face (stratified, as the LED's
+    directions are in ``trace.emit``), ``behind_mm`` behind it, travelling +y, each
+    within a uniform cone of half-angle ``divergence_deg``.
 
-    Returns ``emit(mi, n, rng)`` -> Dr.Jit (origins, unit directions), for
-    ``trace.render_walls``.
+    Returns ``emit(mi, n, seed)`` -> Dr.Jit (origins, unit directions) of about ``n``
+    photons, for ``trace.render_walls``.
     """
-    def emit(mi, n, rng):
+    def emit(mi, n, seed):
         import drjit as dr
 
-        s, t = rng.next_float32() - 0.5, rng.next_float32() - 0.5
-        o = mi.Point3f(s * shape.width_mm, -behind_mm, shape.height_mm / 2 + t * shape.height_mm)
+        from .trace import direction_rng, stratified_square
+
+        square, count = stratified_square(mi, n, shape.width_mm / shape.height_mm, seed)
+        o = mi.Point3f((square.x - 0.5) * shape.width_mm, -behind_mm, square.y * shape.height_mm)
         axis = mi.Vector3f(0.0, 1.0, 0.0)
         if divergence_deg <= 0:
-            return o, dr.zeros(mi.Vector3f, n) + axis
+            return o, dr.zeros(mi.Vector3f, count) + axis
+        rng = direction_rng(mi, count, seed)
         local = mi.warp.square_to_uniform_cone(mi.Point2f(rng.next_float32(), rng.next_float32()),
                                                float(np.cos(np.radians(divergence_deg))))
         return o, mi.Frame3f(axis).to_world(local)

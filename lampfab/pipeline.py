@@ -631,7 +631,7 @@ def _finishing(build: Build) -> dict:
         return made.vertices, made.faces
 
     study = tolerance_study.study(build.cylinder, load_heights(build), lens_mesh, build.light,
-                                  fab.ior, build.walls, build.targets(v.image_px), max(v.photons // 4, 10_000),
+                                  fab.ior, build.walls, build.targets(v.image_px), v.study_photons,
                                   d.optimize.seed + 11, v.max_bounces, fab.surface_error_mm)
     _log(f"verify: polishing allowance {'>= ' if study['allowance_at_least'] else ''}"
          f"{study['allowance_mm'] * 1000:.0f} µm; the profile's {fab.surface_error_mm * 1000:.0f} µm costs r "

@@ -56,37 +56,57 @@ def _np(v) -> np.ndarray:
     return np.stack([v.x.numpy(), v.y.numpy(), v.z.numpy()], 1).astype(np.float64)
 
 
-def emit(mi, light_mm: np.ndarray, radius_mm: float, n: int, rng):
-    """Photons from the LED: an isotropic point, or a Lambertian sphere of ``radius_mm``.
+def emit(mi, light_mm: np.ndarray, radius_mm: float, n: int, seed: int):
+    """About ``n`` photons from the LED: an isotropic point, or a Lambertian sphere of
+    ``radius_mm``, stratified over the sphere of directions (``stratified_sphere``).
 
-    Returns Dr.Jit (origins, unit directions) for ``n`` photons.
+    Stratified, not independent: a pixel's count then varies far less than Poisson's
+    sqrt(count) (the clock's SSIM at 4 M photons: 0.77-0.81 stratified, 0.63-0.65
+    independent; 0.82-0.86 at 64 M stratified), and the images' expectation is the
+    same.  Returns Dr.Jit (origins, unit directions) of about ``n`` photons.
     """
     import drjit as dr
 
-    d = mi.warp.square_to_uniform_sphere(mi.Point2f(rng.next_float32(), rng.next_float32()))
+    d, count = stratified_sphere(mi, n, seed)
     o = mi.Point3f(*[float(c) for c in light_mm])
     if radius_mm <= 0:
-        return dr.zeros(mi.Point3f, n) + o, d
+        return dr.zeros(mi.Point3f, count) + o, d
     # Cosine-weighted about the sphere's normal: a Lambertian emitter.
+    rng = direction_rng(mi, count, seed)
     local = mi.warp.square_to_cosine_hemisphere(mi.Point2f(rng.next_float32(), rng.next_float32()))
     return o + radius_mm * d, mi.Frame3f(d).to_world(local)
+
+
+def stratified_square(mi, n: int, aspect: float, seed: int):
+    """About ``n`` points of the unit square, one jittered inside each cell of a grid
+    whose cells are square once the square is stretched ``aspect`` times as wide as
+    high.  Returns (Dr.Jit Point2f, their count)."""
+    import drjit as dr
+
+    rows = max(1, int(round(np.sqrt(n / aspect))))
+    cols = max(1, n // rows)
+    count = rows * cols
+    rng = mi.PCG32(count, dr.opaque(mi.UInt64, seed), dr.opaque(mi.UInt64, 0))
+    i = dr.arange(mi.UInt32, count)
+    return mi.Point2f((mi.Float(i % cols) + rng.next_float32()) / cols,
+                      (mi.Float(i // cols) + rng.next_float32()) / rows), count
+
+
+def direction_rng(mi, count: int, seed: int):
+    """A random stream for an emitter's second sample (an LED's or a beam's spread),
+    independent of ``stratified_square``'s (stream 0) and ``propagate``'s (from 1 << 48)."""
+    import drjit as dr
+
+    return mi.PCG32(count, dr.opaque(mi.UInt64, seed), dr.opaque(mi.UInt64, 1 << 40))
 
 
 def stratified_sphere(mi, n: int, seed: int):
     """About ``n`` unit directions, one jittered inside each cell of an equal-area
     (azimuth, height) grid on the sphere.  Returns (Dr.Jit directions, their count)."""
-    import drjit as dr
-
     # A cell spans 2 pi / cols of azimuth and 2 / rows of height: about square at the
     # equator with pi times as many columns as rows.
-    rows = max(1, int(round(np.sqrt(n / np.pi))))
-    cols = max(1, n // rows)
-    count = rows * cols
-    rng = mi.PCG32(count, dr.opaque(mi.UInt64, seed), dr.opaque(mi.UInt64, 0))
-    i = dr.arange(mi.UInt32, count)
-    across = (mi.Float(i % cols) + rng.next_float32()) / cols
-    up = (mi.Float(i // cols) + rng.next_float32()) / rows
-    return mi.warp.square_to_uniform_sphere(mi.Point2f(across, up)), count
+    square, count = stratified_square(mi, n, np.pi, seed)
+    return mi.warp.square_to_uniform_sphere(square), count
 
 
 def _take(cls, v, index):
@@ -186,13 +206,15 @@ def pixel_hits(mi, walls: list[Wall], shapes: list[tuple[int, int]], o, d):
 def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float, ior: float,
                  walls: list[Wall], shapes: list[tuple[int, int]], photons: int, seed: int,
                  max_bounces: int = 8, emitter=None) -> tuple[list[np.ndarray], dict]:
-    """Trace ``photons`` photons from the LED through the lens onto the walls.
+    """Trace about ``photons`` photons from the LED through the lens onto the walls.
 
-    ``emitter(mi, n, rng)`` -> Dr.Jit (origins, unit directions) replaces the LED
-    (``emit``) with another light, e.g. a panel's collimated beam.
+    ``emitter(mi, n, seed)`` -> Dr.Jit (origins, unit directions) of about ``n``
+    photons replaces the LED (``emit``) with another light, e.g. a panel's collimated
+    beam.
 
     Returns (per-wall flux images (rows, cols) float64, {"shares": [...], "lost": f,
-    "trapped": f, "ghosts": [...]}) with flux as a fraction of the emitted light;
+    "trapped": f, "ghosts": [...], "photons": the count traced}) with flux as a
+    fraction of the emitted light;
     ``ghosts`` are the part of each image that was reflected inside the lens at least
     once (Fresnel ghosts: what no outer surface steers, since it follows other paths).
     The per-pixel sums run in numpy in a fixed order, so a seed gives the same images
@@ -205,13 +227,12 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     counts = np.zeros(sum(sizes), np.int64)
     ghost_counts = np.zeros(sum(sizes), np.int64)
     trapped = 0
-    done = 0
-    batch_index = 0
-    while done < photons:
-        n = min(BATCH, photons - done)
-        batch_seed = seed * 1_000_003 + batch_index
-        rng = mi.PCG32(n, dr.opaque(mi.UInt64, batch_seed), dr.opaque(mi.UInt64, 0))
-        o, d = emitter(mi, n, rng) if emitter else emit(mi, light_mm, light_radius_mm, n, rng)
+    traced = 0
+    batches = -(-photons // BATCH)
+    for batch in range(batches):
+        batch_seed = seed * 1_000_003 + batch
+        n = photons // batches + (batch < photons % batches)
+        o, d = emitter(mi, n, batch_seed) if emitter else emit(mi, light_mm, light_radius_mm, n, batch_seed)
 
         def land(o_out, d_out, reflected):
             pixel = pixel_hits(mi, walls, shapes, o_out, d_out)
@@ -219,14 +240,13 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
             counts[:] += np.bincount(pixel[pixel >= 0], minlength=len(counts))
             ghost_counts[:] += np.bincount(pixel[(pixel >= 0) & ghost], minlength=len(counts))
 
+        traced += dr.width(d)
         trapped += propagate(mi, scene.scene, o, d, ior, batch_seed, max_bounces, land)
-        done += n
-        batch_index += 1
 
     def per_wall(c):
-        return [img.reshape(s) for img, s in zip(np.split(c / photons, np.cumsum(sizes)[:-1]), shapes)]
+        return [img.reshape(s) for img, s in zip(np.split(c / traced, np.cumsum(sizes)[:-1]), shapes)]
 
     images = per_wall(counts)
     shares = [float(img.sum()) for img in images]
-    return images, {"shares": shares, "lost": 1.0 - sum(shares) - trapped / photons,
-                    "trapped": trapped / photons, "ghosts": per_wall(ghost_counts)}
+    return images, {"shares": shares, "lost": 1.0 - sum(shares) - trapped / traced,
+                    "trapped": trapped / traced, "ghosts": per_wall(ghost_counts), "photons": traced}

@@ -85,3 +85,17 @@ def test_stratified_directions_cover_the_sphere_evenly(mi):
     assert np.linalg.norm(d.mean(axis=0)) < 0.1 / np.sqrt(count)
     again, _ = trace.stratified_sphere(mi, 10_000, seed=6)
     assert not np.allclose(_np(again), d)
+
+
+def test_stratified_photons_vary_less_than_poisson_per_pixel(plain_room):
+    """Two renders with different seeds differ by far less than independent photons'
+    counting noise: verify's figures are not limited by its own photon noise."""
+    scene, light, walls, shapes = plain_room
+    photons = 200_000
+    a, info = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, photons, seed=3)
+    b, _ = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, photons, seed=4)
+    assert abs(info["photons"] - photons) < 0.01 * photons
+    counts_a, counts_b = (np.concatenate([img.ravel() for img in x]) * info["photons"] for x in (a, b))
+    # Independent photons: each pixel's count is Poisson, var(a - b) = a + b.
+    ratio = np.var(counts_a - counts_b) / np.mean(counts_a + counts_b)
+    assert ratio < 0.3
