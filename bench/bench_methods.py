@@ -10,9 +10,9 @@ limit of the sla_resin profile) in this one process, one after the other.  The c
 of each method runs only while it computes (init included); measuring pauses it.  At
 each wall-clock budget the current surface is made what the printer gets (projected
 onto the fabrication limits, merged with the inner layer and the LED bore: the solid
-whose triangles lens.stl holds) and traced with its true facets, as verify does (4M
-photons, 64 px wide, point light): Pearson r and SSIM per wall, and the share of the
-emitted light on the walls.  Prints a table and the ratios; --record appends them to
+whose triangles lens.stl holds) and traced with its true facets, as verify does (the
+profile's ``[verify] photons``, stratified; 64 px wide, point light): Pearson r and SSIM
+per wall, and the share of the emitted light on the walls.  Prints a table and the ratios; --record appends them to
 bench/RESULTS.md with the machine.
 """
 
@@ -35,7 +35,6 @@ sys.path.insert(0, str(ROOT))
 from lampfab import metrics, optimize, pipeline, solid, trace  # noqa: E402
 from lampfab.mi_env import mitsuba  # noqa: E402
 
-VERIFY_PHOTONS = 4_000_000
 VERIFY_PX = 64
 GOAL_R = 0.9
 
@@ -45,7 +44,7 @@ def measure(build, inner, runner, heights, targets) -> dict:
     made = runner.makeable(heights)
     s = solid.build_solid(build.cylinder, made, build.design.optimize.tessellation, *inner, build.fab.mount_radius_mm)
     images, info = trace.render_walls(trace.MeshScene(s.vertices, s.faces), build.light, 0.0, build.fab.ior,
-                                      build.walls, [t.shape for t in targets], VERIFY_PHOTONS, seed=99)
+                                      build.walls, [t.shape for t in targets], build.design.verify.photons, seed=99)
     figs = [metrics.compare(i, t) for i, t in zip(images, targets)]
     return {"r": min(f["pearson"] for f in figs), "ssim": min(f["ssim"] for f in figs),
             "r_walls": [f["pearson"] for f in figs], "ssim_walls": [f["ssim"] for f in figs],
@@ -138,10 +137,10 @@ def main() -> None:
         splat_rows = run_method("lampfab", build, inner, targets, [b for b in budgets if b >= init_s], heights,
                                 splat_opt, init_s)
 
-    report(args, budgets, seed_rows, pass_rows + [init_row], splat_rows, steps)
+    report(args, budgets, seed_rows, pass_rows + [init_row], splat_rows, steps, d.verify.photons)
 
 
-def report(args, budgets, seed_rows, init_rows, splat_rows, seed_steps) -> None:
+def report(args, budgets, seed_rows, init_rows, splat_rows, seed_steps, photons) -> None:
     best_seed = max(r["r"] for r in seed_rows)
     seed_at = _first(seed_rows, best_seed)
     # seed got there after the budget before (a lower bound on its time) ...
@@ -155,7 +154,8 @@ def report(args, budgets, seed_rows, init_rows, splat_rows, seed_steps) -> None:
     lines = ["", f"## {time.strftime('%Y-%m-%d')}: {Path(args.image).name}, {platform.machine()} "
              f"{platform.processor() or 'CPU'}, {os.cpu_count()} cores, Mitsuba {mi.__version__} {mi.variant()}", "",
              f"seed: {seed_steps} steps planned (as many as fit the largest budget); lampfab: the {args.profile} "
-             f"profile, its transport passes timed as they end, then its gradient steps at the budgets.", "",
+             f"profile, its transport passes timed as they end, then its gradient steps at the budgets. "
+             f"Each measured on the solid lens.stl would hold, {photons:,} stratified photons, {VERIFY_PX} px.", "",
              "| method | at s | steps | min r | min SSIM | r per wall | SSIM per wall | light on walls |",
              "|---|---|---|---|---|---|---|---|"]
     for r in seed_rows + lampfab_rows:
