@@ -116,12 +116,10 @@ def _take(cls, v, index):
     return cls(*(dr.gather(type(c), c, index) for c in (v.x, v.y, v.z)))
 
 
-def refract_or_reflect(mi, d, n, ior: float, xi):
-    """New unit directions at a dielectric interface (glass of ``ior`` in air).
-
-    ``n`` are the hit facets' outward normals.  Reflection is chosen with the
-    unpolarized Fresnel probability (always under total internal reflection).
-    """
+def interface(mi, d, n, ior: float):
+    """What happens at a dielectric interface (glass of ``ior`` in air), ``n`` the
+    hit facets' outward normals: (unpolarized Fresnel reflectance, 1 under total
+    internal reflection; reflected unit directions; refracted unit directions)."""
     import drjit as dr
 
     cos_dn = dr.dot(d, n)
@@ -134,8 +132,60 @@ def refract_or_reflect(mi, d, n, ior: float, xi):
     rs = dr.square((cos_i - eta * cos_t) / (cos_i + eta * cos_t))
     rp = dr.square((eta * cos_i - cos_t) / (eta * cos_i + cos_t))
     fresnel = dr.select(sin2_t >= 1.0, 1.0, 0.5 * (rs + rp))
-    return dr.normalize(dr.select(xi < fresnel, d + 2.0 * cos_i * facing,
-                                  d / eta + (cos_i / eta - cos_t) * facing))
+    return (fresnel, dr.normalize(d + 2.0 * cos_i * facing),
+            dr.normalize(d / eta + (cos_i / eta - cos_t) * facing))
+
+
+def refract_or_reflect(mi, d, n, ior: float, xi):
+    """New unit directions at a dielectric interface (see ``interface``): reflected
+    where ``xi`` (uniform in [0, 1)) falls below the Fresnel reflectance."""
+    import drjit as dr
+
+    fresnel, reflected, refracted = interface(mi, d, n, ior)
+    return dr.select(xi < fresnel, reflected, refracted)
+
+
+def into_glass(mi, cavity, o, d, ior: float, reflected_every: int):
+    """Photons from inside the cavity into the glass around it, with their flux.
+
+    ``cavity`` is the inner layer as a Mitsuba scene with its normals into the cavity.
+    Each photon refracts into the glass where it meets the cavity's wall, with the
+    Fresnel transmittance as its weight.  Every ``reflected_every``-th one also follows
+    the light reflected there: across the cavity and into the glass on its far side,
+    weighted reflectance x transmittance x ``reflected_every``.  Those reflections are
+    about 4 % of the light, and the outer surface steers them like the rest: the light
+    a sector's wall reflects enters the opposite sector close to the height where light
+    from the LED enters it, so the outer surface focuses it onto a band across the
+    middle of that sector's wall (on the apple a third of the reflected light on each
+    wall, in the 12 rows around the light's height).  Weights, not a random choice
+    between the two: a choice adds binomial noise to every pixel (the refinement wrote
+    it into the clock's flat grey: SSIM 0.81 -> 0.77 on its front wall, 0.82 weighted).
+
+    Returns Dr.Jit (points just inside the glass, unit directions, weights): first the
+    refracted photons in order, then the reflected ones.
+    """
+    import drjit as dr
+
+    si = cavity.ray_intersect(mi.Ray3f(o, d), mi.RayFlags.Minimal, False)
+    reflectance, reflected, refracted = interface(mi, d, si.n, ior)
+    some = dr.arange(mi.UInt32, 0, dr.width(d), reflected_every)
+    start = _take(mi.Point3f, si.p, some)
+    back = _take(mi.Vector3f, reflected, some)
+    across = cavity.ray_intersect(mi.Ray3f(start + tolerances.RAY_EPSILON_MM * back, back),
+                                  mi.RayFlags.Minimal, False)
+    far_reflectance, _, far_refracted = interface(mi, back, across.n, ior)
+    p = _concat(mi.Point3f, si.p, across.p)
+    d_glass = _concat(mi.Vector3f, refracted, far_refracted)
+    weight = dr.concat([1.0 - reflectance, dr.gather(mi.Float, reflectance, some) * (1.0 - far_reflectance)
+                        * float(reflected_every)])
+    return p + tolerances.RAY_EPSILON_MM * d_glass, d_glass, weight
+
+
+def _concat(cls, a, b):
+    """Dr.Jit 3-vector arrays ``a`` then ``b``."""
+    import drjit as dr
+
+    return cls(*(dr.concat([x, y]) for x, y in ((a.x, b.x), (a.y, b.y), (a.z, b.z))))
 
 
 def propagate(mi, scene, o, d, ior: float, seed: int, max_bounces: int, on_escape) -> int:

@@ -99,3 +99,30 @@ def test_stratified_photons_vary_less_than_poisson_per_pixel(plain_room):
     # Independent photons: each pixel's count is Poisson, var(a - b) = a + b.
     ratio = np.var(counts_a - counts_b) / np.mean(counts_a + counts_b)
     assert ratio < 0.3
+
+
+def test_light_reflected_by_the_cavity_enters_the_glass_across_it(mi, inner_layer, default_design):
+    """into_glass: the light meeting the cavity's wall head-on enters the glass there
+    (96 %), and every 4th photon also carries the 4 % reflected across the cavity into
+    the glass on the far side, still travelling straight."""
+    v, f = inner_layer
+    cavity = trace.MeshScene(v, f[:, ::-1])  # normals into the cavity
+    light = room.light_position(default_design)
+    n = 2_000
+    o = _dr(mi, np.tile(light, (n, 1)))
+    d = _dr(mi, np.tile([1.0, 0.0, 0.0], (n, 1)))
+    p, d_glass, w = trace.into_glass(mi, cavity.scene, o, d, 1.5, 4)
+    p, d_glass, w = _np(p), _np(d_glass), w.numpy()
+    assert len(w) == n + n // 4
+    near, far = slice(0, n), slice(n, None)
+    assert np.all(p[near, 0] > 0) and np.all(p[far, 0] < 0)
+    radius = np.hypot(p[:, 0], p[:, 1])
+    assert np.allclose(radius, radius[0], atol=0.05) and 10 < radius[0] < 14  # on the bore's wall (r 12 mm)
+    # Within the tilt of the bore's facets (1024 around: 0.35° each).
+    assert np.allclose(d_glass[near], [1.0, 0.0, 0.0], atol=0.02)
+    assert np.allclose(d_glass[far], [-1.0, 0.0, 0.0], atol=0.02)
+    r = ((1.5 - 1) / (1.5 + 1)) ** 2
+    assert np.allclose(w[near], 1 - r, atol=1e-4)
+    assert np.allclose(w[far], 4 * r * (1 - r), atol=1e-4)
+    _, _, matched = trace.into_glass(mi, cavity.scene, o, d, 1.0 + 1e-6, 4)
+    assert np.allclose(matched.numpy(), np.r_[np.ones(n), np.zeros(n // 4)], atol=1e-6)
