@@ -193,8 +193,8 @@ class SplatOptimizer(Optimizer):
         self._ensure_scene(heights)
         self._photons(seed)
         self._set_heights(heights)
-        corners, v, weights, per_view = self._landing(views, grad=True)
-        flux = weights / self.n_photons
+        corners, v, photon_weights, per_view = self._landing(views, grad=True)
+        flux = photon_weights / self.n_photons
         weights = self.opt.loss_weights or (1.0,) * len(self.walls)
         total = 0.0
         surrogate = self.mi.Float(0.0)

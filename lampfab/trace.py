@@ -266,7 +266,8 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     "trapped": f, "ghosts": [...], "photons": the count traced}) with flux as a
     fraction of the emitted light;
     ``ghosts`` are the part of each image that was reflected inside the lens at least
-    once (Fresnel ghosts: what no outer surface steers, since it follows other paths).
+    once (Fresnel ghosts; most follow paths no outer surface steers, except the
+    cavity's reflections, see ``into_glass``).
     The per-pixel sums run in numpy in a fixed order, so a seed gives the same images
     every time.
     """
