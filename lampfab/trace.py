@@ -168,12 +168,15 @@ def into_glass(mi, cavity, o, d, ior: float, reflected_every: int):
 
     si = cavity.ray_intersect(mi.Ray3f(o, d), mi.RayFlags.Minimal, False)
     reflectance, reflected, refracted = interface(mi, d, si.n, ior)
+    # One kernel for the intersection: each later use of a lazy result would re-run it.
+    dr.eval(si.p, reflectance, reflected, refracted)
     some = dr.arange(mi.UInt32, 0, dr.width(d), reflected_every)
     start = _take(mi.Point3f, si.p, some)
     back = _take(mi.Vector3f, reflected, some)
     across = cavity.ray_intersect(mi.Ray3f(start + tolerances.RAY_EPSILON_MM * back, back),
                                   mi.RayFlags.Minimal, False)
     far_reflectance, _, far_refracted = interface(mi, back, across.n, ior)
+    dr.eval(across.p, far_reflectance, far_refracted)
     p = _concat(mi.Point3f, si.p, across.p)
     d_glass = _concat(mi.Vector3f, refracted, far_refracted)
     weight = dr.concat([1.0 - reflectance, dr.gather(mi.Float, reflectance, some) * (1.0 - far_reflectance)
