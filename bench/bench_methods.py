@@ -101,9 +101,9 @@ def main() -> None:
 
         # The source's method: plain cylinder, ptracer, its scale-independent MSE, cyclic
         # views, coarse-to-fine (half the schedule on the coarse grid, as the profile's
-        # levels split it).
+        # levels split it), every step kept.
         seed_opt = dataclasses.replace(d.optimize, method="seed", loss="si_mse", schedule="cyclic", spp=64,
-                                       preview_every=10**9, checkpoint_every=10**9)
+                                       backtrack=False, preview_every=10**9, checkpoint_every=10**9)
         steps = args.seed_steps
         if not steps:
             probe = build.optimizer(seed_opt, inner, build.targets(seed_opt.sensor_px))

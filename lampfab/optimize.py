@@ -143,6 +143,10 @@ class Optimizer:
                  light_mm: np.ndarray, ior: float, walls: list[Wall], targets: list[np.ndarray],
                  opt: Optimize, max_offset_mm: float, max_tilt_deg: float, max_overhang_deg: float | None = None,
                  tool_radius_mm: float = 0.0):
+        if opt.backtrack and opt.schedule != "joint":
+            # One view per step: consecutive losses are of different walls, and every
+            # step would look like a rise (the profile loader refuses this too).
+            raise ValueError("backtrack needs schedule 'joint'")
         self.cyl, self.inner_v, self.inner_f = cyl, inner_vertices, inner_faces
         self.light, self.ior, self.walls, self.opt = light_mm, ior, walls, opt
         self.targets = [np.asarray(t, np.float64) for t in targets]

@@ -350,6 +350,13 @@ def test_backtracking_starts_each_level_at_the_full_step(tiny_design):
     assert dict(seen)[4] == 1.0 and min(scale for _, scale in seen[:4]) < 1.0
 
 
+def test_backtracking_with_one_view_per_step_is_refused(tiny_design):
+    # The bench's seed method once ran so: every step compared another wall's loss and
+    # was taken back, and the lens never moved.
+    with pytest.raises(ValueError, match="backtrack needs schedule 'joint'"):
+        Quadratic(tiny_design, {}, schedule="cyclic", backtrack=True)
+
+
 def test_a_fault_that_stays_stops_with_a_message(tiny_design):
     always = {k: float("nan") for k in range(3, 100)}
     with pytest.raises(optimize.NumericalFault, match=r"step 2: the loss is nan, even after halving the learning "
