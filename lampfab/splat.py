@@ -68,14 +68,13 @@ class SplatOptimizer(Optimizer):
         from 0.53 to 0.55, and the coherent rays trace faster (bench/RESULTS.md)."""
         import drjit as dr
 
-        from .trace import into_glass, stratified_sphere
+        from .trace import emit, into_glass
 
         if seed == self._photon_seed:
             return
         mi = self.mi
-        d, n = stratified_sphere(mi, self.opt.splat_photons, seed)
-        self.n_photons = n
-        o = dr.zeros(mi.Point3f, n) + mi.Point3f(*[float(c) for c in self.light])
+        o, d = emit(mi, self.light, 0.0, self.opt.splat_photons, seed)  # the ideal point light
+        self.n_photons = dr.width(d)
         self.o_glass, self.d_glass, self.w_glass = into_glass(mi, self.inner.scene, o, d, self.ior,
                                                               CAVITY_REFLECTIONS_EVERY)
         dr.eval(self.o_glass, self.d_glass, self.w_glass)
