@@ -236,8 +236,9 @@ def test_unicode_spaces_16bit_and_palette_targets_are_accepted(tmp_path):
 def test_memory_check_names_the_keys(monkeypatch):
     design = profile.load_design(str(TINY))
     monkeypatch.setattr(resources, "available_bytes", lambda: 1e6)
-    with pytest.raises(LampfabError, match=r"optimize: needs about .* GB of memory \(20,000 photons from "
-                                           r"\[optimize\] splat_photons and 4,224 surface vertices"):
+    with pytest.raises(LampfabError, match=r"optimize: needs about .* GB of memory \(25,000 photons from "
+                                           r"\[optimize\] splat_photons \(1 in 4 also traced across the cavity\) "
+                                           r"and 4,224 surface vertices"):
         resources.check_memory("optimize", design)
     monkeypatch.setattr(resources, "available_bytes", lambda: 64e9)
     resources.check_memory("optimize", design)
