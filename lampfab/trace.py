@@ -191,19 +191,21 @@ def _concat(cls, a, b):
     return cls(*(dr.concat([x, y]) for x, y in ((a.x, b.x), (a.y, b.y), (a.z, b.z))))
 
 
-def propagate(mi, scene, o, d, ior: float, seed: int, max_bounces: int, on_escape) -> int:
+def propagate(mi, scene, o, d, ior: float, seed: int, max_bounces: int, on_escape, place=None) -> int:
     """Follow photons through the lens until they leave it.
 
     One wavefront per interface, compacted so finished photons cost nothing.
     ``scene`` holds one closed solid with outward normals; refraction uses the hit
     facet's geometric normal ``si.n``.  ``on_escape(o, d, reflected)`` receives each
-    wavefront's escaping photons (Dr.Jit arrays), ``reflected`` a Dr.Jit Bool: the
-    photon was reflected at least once (a Fresnel ghost).  Returns how many are still
-    inside after ``max_bounces`` interfaces.
+    wavefront's escaping photons (Dr.Jit arrays), ``reflected`` a Dr.Jit UInt32: 0 if
+    the photon was never reflected, else where it was first reflected (a Fresnel
+    ghost): ``place(points, outward normals)`` -> Dr.Jit UInt32 codes from 1, or 1
+    without ``place``.  Returns how many are still inside after ``max_bounces``
+    interfaces.
     """
     import drjit as dr
 
-    reflected = dr.full(mi.Bool, False, dr.width(d))
+    reflected = dr.zeros(mi.UInt32, dr.width(d))
     for bounce in range(max_bounces):
         n = dr.width(d)
         if n == 0:
@@ -214,7 +216,7 @@ def propagate(mi, scene, o, d, ior: float, seed: int, max_bounces: int, on_escap
         dr.eval(valid, si.p, si.n, o, d)
         gone = dr.compress(~valid)
         if dr.width(gone):
-            on_escape(_take(mi.Point3f, o, gone), _take(mi.Vector3f, d, gone), dr.gather(mi.Bool, reflected, gone))
+            on_escape(_take(mi.Point3f, o, gone), _take(mi.Vector3f, d, gone), dr.gather(mi.UInt32, reflected, gone))
         live = dr.compress(valid)
         if dr.width(live) == 0:  # every photon left (a flat panel's light can all be out by now)
             return 0
@@ -225,7 +227,9 @@ def propagate(mi, scene, o, d, ior: float, seed: int, max_bounces: int, on_escap
         normal = _take(mi.Vector3f, si.n, live)
         d = refract_or_reflect(mi, d_in, normal, ior, rng.next_float32())
         # A reflected photon turns back to the side of the facet it came from.
-        reflected = dr.gather(mi.Bool, reflected, live) | (dr.dot(d_in, normal) * dr.dot(d, normal) < 0)
+        reflected = dr.gather(mi.UInt32, reflected, live)
+        first = (dr.dot(d_in, normal) * dr.dot(d, normal) < 0) & (reflected == 0)
+        reflected = dr.select(first, place(p, normal) if place else mi.UInt32(1), reflected)
         o = p + tolerances.RAY_EPSILON_MM * d
         dr.eval(o, d, reflected)
     return dr.width(d)
@@ -258,7 +262,7 @@ def pixel_hits(mi, walls: list[Wall], shapes: list[tuple[int, int]], o, d):
 
 def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float, ior: float,
                  walls: list[Wall], shapes: list[tuple[int, int]], photons: int, seed: int,
-                 max_bounces: int = 8, emitter=None) -> tuple[list[np.ndarray], dict]:
+                 max_bounces: int = 8, emitter=None, reflection_place=None) -> tuple[list[np.ndarray], dict]:
     """Trace about ``photons`` photons from the LED through the lens onto the walls.
 
     ``emitter(mi, n, seed)`` -> Dr.Jit (origins, unit directions) of about ``n``
@@ -269,8 +273,9 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     "trapped": f, "ghosts": [...], "photons": the count traced}) with flux as a
     fraction of the emitted light;
     ``ghosts`` are the part of each image that was reflected inside the lens at least
-    once (Fresnel ghosts; most follow paths no outer surface steers, except the
-    cavity's reflections, see ``into_glass``).
+    once (Fresnel ghosts: the refinement traces only the cavity's, see ``into_glass``).
+    With ``reflection_place`` (see ``propagate``) the info also holds
+    "ghosts_by_place": {code: per-wall images of the ghosts first reflected there}.
     The per-pixel sums run in numpy in a fixed order, so a seed gives the same images
     every time.
     """
@@ -279,7 +284,7 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     mi = scene.mi
     sizes = [r * c for r, c in shapes]
     counts = np.zeros(sum(sizes), np.int64)
-    ghost_counts = np.zeros(sum(sizes), np.int64)
+    ghost_counts: dict[int, np.ndarray] = {}
     trapped = 0
     traced = 0
     batches = -(-photons // BATCH)
@@ -290,17 +295,22 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
 
         def land(o_out, d_out, reflected):
             pixel = pixel_hits(mi, walls, shapes, o_out, d_out)
-            ghost = reflected.numpy()
+            place = reflected.numpy()
             counts[:] += np.bincount(pixel[pixel >= 0], minlength=len(counts))
-            ghost_counts[:] += np.bincount(pixel[(pixel >= 0) & ghost], minlength=len(counts))
+            for code in np.unique(place[(pixel >= 0) & (place > 0)]):
+                ghost_counts.setdefault(int(code), np.zeros(len(counts), np.int64))
+                ghost_counts[code] += np.bincount(pixel[(pixel >= 0) & (place == code)], minlength=len(counts))
 
         traced += dr.width(d)
-        trapped += propagate(mi, scene.scene, o, d, ior, batch_seed, max_bounces, land)
+        trapped += propagate(mi, scene.scene, o, d, ior, batch_seed, max_bounces, land, reflection_place)
 
     def per_wall(c):
         return [img.reshape(s) for img, s in zip(np.split(c / traced, np.cumsum(sizes)[:-1]), shapes)]
 
     images = per_wall(counts)
     shares = [float(img.sum()) for img in images]
-    return images, {"shares": shares, "lost": 1.0 - sum(shares) - trapped / traced,
-                    "trapped": trapped / traced, "ghosts": per_wall(ghost_counts), "photons": traced}
+    info = {"shares": shares, "lost": 1.0 - sum(shares) - trapped / traced, "trapped": trapped / traced,
+            "ghosts": per_wall(sum(ghost_counts.values(), np.zeros(len(counts), np.int64))), "photons": traced}
+    if reflection_place:
+        info["ghosts_by_place"] = {code: per_wall(c) for code, c in sorted(ghost_counts.items())}
+    return images, info

@@ -29,11 +29,13 @@ def read_design(path) -> dict:
 
 
 def render_design(design_path, image_px: int, photons: int, seed: int, max_bounces: int,
-                  light_radius_mm: float | None = None) -> tuple[list[room.Wall], list[np.ndarray], dict]:
+                  light_radius_mm: float | None = None,
+                  reflection_place=None) -> tuple[list[room.Wall], list[np.ndarray], dict]:
     """Trace the design's STL onto its walls.  Returns (walls, flux images, info).
 
     ``light_radius_mm`` None: the design's own light (an LED of its radius, a beam with
-    its spread); a number: an LED of that radius (a beam: parallel)."""
+    its spread); a number: an LED of that radius (a beam: parallel).
+    ``reflection_place``: see ``trace.render_walls``."""
     from . import stl, trace
 
     design_path = Path(design_path)
@@ -51,7 +53,7 @@ def render_design(design_path, image_px: int, photons: int, seed: int, max_bounc
     scene = trace.MeshScene(vertices, faces)
     images, info = trace.render_walls(scene, np.asarray(design["light"]["position"], float), radius,
                                       float(design["material"]["ior"]), walls, shapes, photons, seed,
-                                      max_bounces, emitter)
+                                      max_bounces, emitter, reflection_place)
     return walls, images, info
 
 

@@ -72,6 +72,26 @@ def test_ghosts_are_the_reflected_part_of_the_light(plain_room):
     assert all(ghost.sum() == 0 for ghost in matched["ghosts"])
 
 
+def test_ghosts_split_by_where_they_were_first_reflected(plain_room):
+    import drjit as dr
+
+    scene, light, walls, shapes = plain_room
+    mi = scene.mi
+
+    def inner_or_outer(p, n):  # 1: a facet facing the axis (the bore), 2: the rest
+        return dr.select(p.x * n.x + p.y * n.y < 0, mi.UInt32(1), mi.UInt32(2))
+
+    images, info = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3)
+    same, split = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3,
+                                     reflection_place=inner_or_outer)
+    assert all(np.array_equal(a, b) for a, b in zip(images, same))
+    assert sorted(split["ghosts_by_place"]) == [1, 2]
+    for k, ghost in enumerate(split["ghosts"]):
+        assert np.allclose(split["ghosts_by_place"][1][k] + split["ghosts_by_place"][2][k], ghost)
+        # Near normal incidence both the bore and the outer surface reflect ~4 %.
+        assert 0.2 < split["ghosts_by_place"][1][k].sum() / ghost.sum() < 0.8
+
+
 def test_stratified_directions_cover_the_sphere_evenly(mi):
     directions, count = trace.stratified_sphere(mi, 10_000, seed=5)
     d = _np(directions)
