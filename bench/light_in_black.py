@@ -29,7 +29,7 @@ from lampfab import artifacts, image, metrics, verify  # noqa: E402
 
 PLACES = {1: "inner layer", 2: "outer surface", 3: "flat faces"}
 BLACK = 0.05  # of the target's peak
-FLAT_NZ = np.cos(np.radians(8.0))  # steeper than any tilt the profiles allow (60-75°)
+FLAT_NZ = np.cos(np.radians(8.0))  # the outer surface tilts 60-75° at most (the profiles' slope limits)
 
 
 def place(p, n):
