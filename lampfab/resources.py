@@ -49,7 +49,8 @@ def in_flight(stage: str, design: Design) -> tuple[int, str]:
         if opt.method == "splat":
             from .splat import CAVITY_REFLECTIONS_EVERY
 
-            return (opt.splat_photons + opt.splat_photons // CAVITY_REFLECTIONS_EVERY,
+            # into_glass follows every k-th photon across the cavity, the first included.
+            return (opt.splat_photons + -(-opt.splat_photons // CAVITY_REFLECTIONS_EVERY),
                     f"[optimize] splat_photons (1 in {CAVITY_REFLECTIONS_EVERY} also traced across the cavity)")
         views = len(design.room.walls) if opt.schedule == "joint" else 1
         return opt.spp * opt.sensor_px**2 * views, "[optimize] spp, sensor_px"
