@@ -12,6 +12,10 @@ For each part: its share of the wall's light, the share that lands in the target
 black (below 5 % of its peak), and the wall's SSIM without that part (for the light
 never reflected: without its part in the black): what the made lamp would score were
 that light gone.
+
+With ``--lens-cells`` it also says where on the lens the direct light in the black
+leaves it: the exit points of the light never reflected, binned in 5° of u by 10 mm of
+height, and the cells that send more than a quarter of their light into the black.
 """
 
 from __future__ import annotations
@@ -43,10 +47,58 @@ def place(p, n):
     return dr.select(dr.abs(n.z) > FLAT_NZ, mi.UInt32(3), dr.select(radial < 0, mi.UInt32(1), mi.UInt32(2)))
 
 
+CELL_DEG, CELL_MM = 5.0, 10.0
+DARK_CELL = 0.25  # a lens cell listed: this share of its light or more lands in the black
+LISTED_CELLS = 8  # per wall, those that put the most light into the black
+
+
+def lens_cells(build: Path, design: dict, walls, blacks: list[np.ndarray], photons: int, seed: int) -> None:
+    """Print, per wall, the lens cells whose direct light lands in ``blacks`` ((rows,
+    cols) bool per wall) most: traced with a point light as verify does."""
+    from lampfab import stl, trace
+    from lampfab.mi_env import mitsuba
+
+    mi = mitsuba()
+    vertices, faces = stl.read_stl(build / design["lens"]["stl"])
+    scene = trace.MeshScene(vertices, faces)
+    shapes = [b.shape for b in blacks]
+    exits, pixels = [], []
+
+    def on_escape(o, d, reflected):
+        direct = reflected.numpy() == 0
+        exits.append(np.stack([o.x.numpy(), o.y.numpy(), o.z.numpy()], 1)[direct])
+        pixels.append(trace.pixel_hits(mi, walls, shapes, o, d)[direct])
+
+    o, d = trace.emit(mi, np.asarray(design["light"]["position"], float), 0.0, photons, seed)
+    trace.propagate(mi, scene.scene, o, d, float(design["material"]["ior"]), seed, 8, on_escape)
+    points, pixel = np.concatenate(exits), np.concatenate(pixels)
+    u = np.degrees(np.arctan2(points[:, 1], points[:, 0])) % 360.0
+    bins = [np.arange(0.0, 360.0 + CELL_DEG, CELL_DEG), np.arange(0.0, vertices[:, 2].max() + CELL_MM, CELL_MM)]
+    offset = 0
+    for wall, black in zip(walls, blacks):
+        local = pixel - offset
+        on_wall = (local >= 0) & (local < black.size)
+        offset += black.size
+        dark = on_wall & black.ravel()[np.where(on_wall, local, 0)]
+        every, _, _ = np.histogram2d(u[on_wall], points[on_wall, 2], bins)
+        in_black, _, _ = np.histogram2d(u[dark], points[dark, 2], bins)
+        share = in_black / np.maximum(every, 1)
+        listed = share > DARK_CELL
+        print(f"\n{wall.name}: {dark.sum() / max(on_wall.sum(), 1):.1%} of the direct light lands in the black; "
+              f"lens cells that send more than {DARK_CELL:.0%} of theirs there carry "
+              f"{in_black[listed].sum() / max(in_black.sum(), 1):.0%} of it and "
+              f"{every[listed].sum() / max(every.sum(), 1):.1%} of the wall's direct light")
+        for i, j in sorted(zip(*np.nonzero(listed)), key=lambda c: -in_black[c])[:LISTED_CELLS]:
+            print(f"  u {bins[0][i]:.0f}-{bins[0][i + 1]:.0f} deg, z {bins[1][j]:.0f}-{bins[1][j + 1]:.0f} mm: "
+                  f"{share[i, j]:.0%} of its light in the black, {in_black[i, j] / in_black.sum():.1%} of the wall's")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("builds", nargs="+", type=Path, help="build folders holding design.json (make lamp's)")
     parser.add_argument("--photons", type=float, default=16e6, help="photons traced (default: verify's 16 M)")
+    parser.add_argument("--lens-cells", action="store_true",
+                        help="also list the lens cells whose direct light lands in the black (4 M more photons)")
     args = parser.parse_args()
     for build in args.builds:
         design_path = build / "design.json"
@@ -55,9 +107,11 @@ def main() -> None:
         print(f"\n{build}: share of each wall's light / of it in the target's black / the wall's SSIM without it")
         print("| wall | SSIM | never reflected | " + " | ".join(f"off the {name}" for name in PLACES.values()) + " |")
         print("|---|---|" + "---|" * (1 + len(PLACES)))
+        blacks = []
         for k, wall in enumerate(walls):
             target = image.letterbox(artifacts.read_linear_png16(build / design["walls"][k]["target"]), *images[k].shape)
             black = target < BLACK * target.max()
+            blacks.append(black)
             total = images[k]
             parts = {code: info["ghosts_by_place"].get(code, [np.zeros_like(total)] * len(walls))[k] for code in PLACES}
             parts[0] = total - sum(parts.values())
@@ -67,6 +121,8 @@ def main() -> None:
                 cells.append(f"{parts[code].sum() / total.sum():.1%} / {part[black].sum() / total.sum():.1%} / "
                              f"{metrics.ssim(total - part, target):.2f}")
             print(f"| {wall.name} | {metrics.ssim(total, target):.3f} | " + " | ".join(cells) + " |")
+        if args.lens_cells:
+            lens_cells(build, design, walls, blacks, 4_000_000, 3)
 
 
 if __name__ == "__main__":
