@@ -34,6 +34,9 @@ from lampfab import artifacts, image, metrics, verify  # noqa: E402
 PLACES = {1: "inner layer", 2: "outer surface", 3: "flat faces"}
 BLACK = 0.05  # of the target's peak
 FLAT_NZ = np.cos(np.radians(8.0))  # the outer surface tilts 60-75° at most (the profiles' slope limits)
+CELL_DEG, CELL_MM = 5.0, 10.0  # --lens-cells: the bins of exit points on the lens, in u and height
+DARK_CELL = 0.25  # a lens cell listed: this share of its light or more lands in the black
+LISTED_CELLS = 8  # per wall, those that put the most light into the black
 
 
 def place(p, n):
@@ -45,11 +48,6 @@ def place(p, n):
     mi = mitsuba()
     radial = (p.x * n.x + p.y * n.y) / dr.maximum(dr.sqrt(p.x * p.x + p.y * p.y), 1e-6)
     return dr.select(dr.abs(n.z) > FLAT_NZ, mi.UInt32(3), dr.select(radial < 0, mi.UInt32(1), mi.UInt32(2)))
-
-
-CELL_DEG, CELL_MM = 5.0, 10.0
-DARK_CELL = 0.25  # a lens cell listed: this share of its light or more lands in the black
-LISTED_CELLS = 8  # per wall, those that put the most light into the black
 
 
 def lens_cells(build: Path, design: dict, walls, blacks: list[np.ndarray], photons: int, seed: int) -> None:
@@ -90,7 +88,7 @@ def lens_cells(build: Path, design: dict, walls, blacks: list[np.ndarray], photo
               f"{every[listed].sum() / max(every.sum(), 1):.1%} of the wall's direct light")
         for i, j in sorted(zip(*np.nonzero(listed)), key=lambda c: -in_black[c])[:LISTED_CELLS]:
             print(f"  u {bins[0][i]:.0f}-{bins[0][i + 1]:.0f} deg, z {bins[1][j]:.0f}-{bins[1][j + 1]:.0f} mm: "
-                  f"{share[i, j]:.0%} of its light in the black, {in_black[i, j] / in_black.sum():.1%} of the wall's")
+                  f"{share[i, j]:.0%} of its light in the black, {in_black[i, j] / in_black.sum():.1%} of the wall's there")
 
 
 def main() -> None:
