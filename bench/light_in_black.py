@@ -64,7 +64,7 @@ def lens_cells(build: Path, design: dict, walls, blacks: list[np.ndarray], photo
 
     def on_escape(o, d, reflected):
         direct = reflected.numpy() == 0
-        exits.append(np.stack([o.x.numpy(), o.y.numpy(), o.z.numpy()], 1)[direct])
+        exits.append(trace.to_numpy(o)[direct])
         pixels.append(trace.pixel_hits(mi, walls, shapes, o, d)[direct])
 
     o, d = trace.emit(mi, np.asarray(design["light"]["position"], float), 0.0, photons, seed)
@@ -88,7 +88,8 @@ def lens_cells(build: Path, design: dict, walls, blacks: list[np.ndarray], photo
               f"{every[listed].sum() / max(every.sum(), 1):.1%} of the wall's direct light")
         for i, j in sorted(zip(*np.nonzero(listed)), key=lambda c: -in_black[c])[:LISTED_CELLS]:
             print(f"  u {bins[0][i]:.0f}-{bins[0][i + 1]:.0f} deg, z {bins[1][j]:.0f}-{bins[1][j + 1]:.0f} mm: "
-                  f"{share[i, j]:.0%} of its light in the black, {in_black[i, j] / in_black.sum():.1%} of the wall's there")
+                  f"{share[i, j]:.0%} of its light in the black, "
+                  f"{in_black[i, j] / in_black.sum():.1%} of the wall's there")
 
 
 def main() -> None:

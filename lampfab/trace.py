@@ -52,7 +52,8 @@ def first_hits(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray,
     return si.is_valid().numpy(), si.prim_index.numpy().astype(np.int64), si.t.numpy().astype(np.float64)
 
 
-def _np(v) -> np.ndarray:
+def to_numpy(v) -> np.ndarray:
+    """A Dr.Jit 3-vector array (points, directions) as (n, 3) float64."""
     return np.stack([v.x.numpy(), v.y.numpy(), v.z.numpy()], 1).astype(np.float64)
 
 

@@ -8,21 +8,18 @@ def _dr(mi, a):
     return mi.Vector3f(*[mi.Float(a[:, k].astype(np.float32)) for k in range(3)])
 
 
-def _np(v):
-    return np.stack([v.x.numpy(), v.y.numpy(), v.z.numpy()], 1)
-
-
 def test_fresnel_and_snell_at_a_flat_interface(mi):
     n = 20000
     normal = np.tile([0.0, 0.0, 1.0], (n, 1))
     down = np.tile([0.0, 0.0, -1.0], (n, 1))
     xi = mi.Float(np.linspace(0, 1, n, endpoint=False).astype(np.float32))
-    out = _np(trace.refract_or_reflect(mi, _dr(mi, down), _dr(mi, normal), 1.5, xi))
+    out = trace.to_numpy(trace.refract_or_reflect(mi, _dr(mi, down), _dr(mi, normal), 1.5, xi))
     reflected = np.mean(out[:, 2] > 0)
     assert reflected == pytest.approx(((1.5 - 1) / (1.5 + 1)) ** 2, abs=1e-3)  # 4 % at normal incidence
     s30 = np.sin(np.radians(30))
     slanted = np.tile([s30, 0.0, -np.cos(np.radians(30))], (n, 1))
-    out = _np(trace.refract_or_reflect(mi, _dr(mi, slanted), _dr(mi, normal), 1.5, mi.Float(np.ones(n, np.float32))))
+    ones = mi.Float(np.ones(n, np.float32))
+    out = trace.to_numpy(trace.refract_or_reflect(mi, _dr(mi, slanted), _dr(mi, normal), 1.5, ones))
     assert out[0, 0] == pytest.approx(s30 / 1.5, abs=1e-6)  # Snell, entering glass
 
 
@@ -36,7 +33,8 @@ def test_snell_normals_send_light_where_asked(mi, rng):
     d_in, d_out = d_in[feasible], d_out[feasible]
     assert len(d_in) > 300
     n = transport.snell_normals(d_in, d_out, 1.49)
-    got = _np(trace.refract_or_reflect(mi, _dr(mi, d_in), _dr(mi, n), 1.49, mi.Float(np.ones(len(d_in), np.float32))))
+    ones = mi.Float(np.ones(len(d_in), np.float32))
+    got = trace.to_numpy(trace.refract_or_reflect(mi, _dr(mi, d_in), _dr(mi, n), 1.49, ones))
     assert np.allclose(got, d_out, atol=1e-5)
 
 
@@ -94,7 +92,7 @@ def test_ghosts_split_by_where_they_were_first_reflected(plain_room):
 
 def test_stratified_directions_cover_the_sphere_evenly(mi):
     directions, count = trace.stratified_sphere(mi, 10_000, seed=5)
-    d = _np(directions)
+    d = trace.to_numpy(directions)
     assert abs(count - 10_000) < 100 and len(d) == count
     assert np.allclose(np.linalg.norm(d, axis=1), 1.0, atol=1e-5)
     # Every equal-area band of height holds the same number of directions: independent
@@ -104,7 +102,7 @@ def test_stratified_directions_cover_the_sphere_evenly(mi):
     # Their mean is far closer to zero than independent directions' (~1 / sqrt(count)).
     assert np.linalg.norm(d.mean(axis=0)) < 0.1 / np.sqrt(count)
     again, _ = trace.stratified_sphere(mi, 10_000, seed=6)
-    assert not np.allclose(_np(again), d)
+    assert not np.allclose(trace.to_numpy(again), d)
 
 
 def test_stratified_photons_vary_less_than_poisson_per_pixel(plain_room):
@@ -132,7 +130,7 @@ def test_light_reflected_by_the_cavity_enters_the_glass_across_it(mi, inner_laye
     o = _dr(mi, np.tile(light, (n, 1)))
     d = _dr(mi, np.tile([1.0, 0.0, 0.0], (n, 1)))
     p, d_glass, w = trace.into_glass(mi, cavity.scene, o, d, 1.5, 4)
-    p, d_glass, w = _np(p), _np(d_glass), w.numpy()
+    p, d_glass, w = trace.to_numpy(p), trace.to_numpy(d_glass), w.numpy()
     assert len(w) == n + n // 4
     near, far = slice(0, n), slice(n, None)
     assert np.all(p[near, 0] > 0) and np.all(p[far, 0] < 0)
