@@ -176,13 +176,13 @@ class Landing:
     """Where the photons that meet the outer side surface land.
 
     index (k,) into the photon set; xy (k, 2) mm on their walls; ok (k,) bool;
-    corners (k, 3) int fine-grid vertices of the facet crossed; jacobian (k, 2, 3)
-    d xy / d radial offset of each corner, or None."""
+    corners (k, 3) int fine-grid vertices of the facet crossed; facet: its corners'
+    positions, three (k, 3) mm."""
     index: np.ndarray
     xy: np.ndarray
     ok: np.ndarray
     corners: np.ndarray
-    jacobian: np.ndarray | None
+    facet: list[np.ndarray]
 
 
 class _Grid:
@@ -252,7 +252,7 @@ class RayMap:
             self._grids[shape] = _Grid(self.cyl, *shape, self.tessellation)
         return self._grids[shape]
 
-    def trace(self, heights: np.ndarray, jacobian: bool = False) -> Landing:
+    def trace(self, heights: np.ndarray) -> Landing:
         """Trace every photon meant for a wall through the tessellated surface."""
         from .trace import first_hits
 
@@ -264,29 +264,31 @@ class RayMap:
         side = valid & (prim < 2 * mu * (mv - 1))  # not a cap
         index = candidates[side]
         corners = faces[prim[side]]
-        wall = self.wall_of[index]
-        o, d = ph.origin[index], ph.direction[index]
         v = [vertices[corners[:, c]] for c in range(3)]
-        xy, ok = landing(o, d, *v, self.ior, self.frames, wall)
-        jac = None
-        if jacobian:
-            jac = np.zeros((len(index), 2, 3))
-            for c in range(3):
-                radial = v[c] * [1.0, 1.0, 0.0]
-                radial /= np.linalg.norm(radial, axis=1, keepdims=True)
-                moved = [list(v), list(v)]
-                moved[0][c] = v[c] + DIFF_STEP_MM * radial
-                moved[1][c] = v[c] - DIFF_STEP_MM * radial
-                plus, _ = landing(o, d, *moved[0], self.ior, self.frames, wall)
-                minus, _ = landing(o, d, *moved[1], self.ior, self.frames, wall)
-                jac[:, :, c] = (plus - minus) / (2 * DIFF_STEP_MM)
-            ok &= np.isfinite(jac).all(axis=(1, 2))
-        return Landing(index, xy, ok, corners, jac)
+        xy, ok = landing(ph.origin[index], ph.direction[index], *v, self.ior, self.frames, self.wall_of[index])
+        return Landing(index, xy, ok, corners, v)
 
-    def _terms(self, grid: _Grid, coef: np.ndarray, goals: np.ndarray, with_jacobian: bool) -> dict:
-        """The objective and, with ``with_jacobian``, its Gauss-Newton matrix and gradient."""
-        heights = grid.nodes(coef)
-        land = self.trace(heights, with_jacobian)
+    def jacobian(self, land: Landing) -> np.ndarray:
+        """(k, 2, 3) d xy / d radial offset of each corner of the facet each photon of
+        ``land`` crosses (central differences; NaN where a difference is undefined)."""
+        o, d = self.photons.origin[land.index], self.photons.direction[land.index]
+        wall = self.wall_of[land.index]
+        jac = np.zeros((len(land.index), 2, 3))
+        for c in range(3):
+            corner = land.facet[c]
+            radial = corner * [1.0, 1.0, 0.0]
+            radial *= DIFF_STEP_MM / np.linalg.norm(radial, axis=1, keepdims=True)
+            moved = list(land.facet)
+            moved[c] = corner + radial
+            plus, _ = landing(o, d, *moved, self.ior, self.frames, wall)
+            moved[c] = corner - radial
+            minus, _ = landing(o, d, *moved, self.ior, self.frames, wall)
+            jac[:, :, c] = (plus - minus) / (2 * DIFF_STEP_MM)
+        return jac
+
+    def _terms(self, grid: _Grid, coef: np.ndarray, goals: np.ndarray) -> dict:
+        """The objective at ``coef``, with what ``_linearized`` needs besides."""
+        land = self.trace(grid.nodes(coef))
         goal = goals[land.index]
         use = land.ok & np.isfinite(goal).all(axis=1)
         w = np.where(use, self.photons.weight[land.index], 0.0) / max(self.photons.weight[land.index].sum(), 1e-300)
@@ -306,14 +308,24 @@ class RayMap:
                  + OFFSET_WEIGHT * float(offset_excess @ offset_excess) / n_fine
                  + CURVATURE_WEIGHT * sum(float(e @ e) for e, _ in limits) / n_fine
                  + LEVEL_WEIGHT * float(offset @ offset) / n_fine + self.smoothness * float(smooth @ smooth))
-        out = {"value": value, "data": data, "max_tilt_deg": float(np.degrees(np.arctan(tan_tilt.max())))}
-        if not with_jacobian:
-            return out
+        return {"value": value, "data": data, "max_tilt_deg": float(np.degrees(np.arctan(tan_tilt.max()))),
+                "at": dict(land=land, use=use, w=w, residual=residual, offset=offset, r=r, r_u=r_u, r_z=r_z,
+                           tan_tilt=tan_tilt, slope_excess=slope_excess, offset_excess=offset_excess,
+                           smooth=smooth, limits=limits)}
+
+    def _linearized(self, grid: _Grid, terms: dict) -> dict:
+        """``terms`` with the objective's Gauss-Newton matrix and gradient added: the
+        landing's Jacobian costs as much as the rest of ``_terms``, so only the steps
+        taken pay for it."""
+        at = terms["at"]
+        land, use, w, residual, offset = at["land"], at["use"], at["w"], at["residual"], at["offset"]
+        r, r_u, r_z, tan_tilt, slope_excess = at["r"], at["r_u"], at["r_z"], at["tan_tilt"], at["slope_excess"]
+        n_fine = len(offset)
         k = len(land.index)
         sw = np.sqrt(w)
         rows = np.broadcast_to(np.arange(2 * k).reshape(k, 2, 1), (k, 2, 3))
         cols = np.broadcast_to(land.corners[:, None, :], (k, 2, 3))
-        jac_v = sp.csr_matrix(((np.where(use[:, None, None], land.jacobian, 0.0) * sw[:, None, None]).ravel(),
+        jac_v = sp.csr_matrix(((np.where(use[:, None, None], self.jacobian(land), 0.0) * sw[:, None, None]).ravel(),
                                (rows.ravel(), cols.ravel())), shape=(2 * k, grid.mu * grid.mv))
         per_vertex = (jac_v.T @ jac_v).tocsr()
         matrix = grid.value.T @ per_vertex @ grid.value
@@ -327,19 +339,18 @@ class RayMap:
                          + sp.diags(r_z[over] / t) @ grid.d_z[over])
             matrix = matrix + (SLOPE_WEIGHT / n_fine) * (slope_jac.T @ slope_jac)
             gradient = gradient + (SLOPE_WEIGHT / n_fine) * (slope_jac.T @ slope_excess[over])
-        for excess, jac in limits:
+        for excess, jac in at["limits"]:
             matrix = matrix + (CURVATURE_WEIGHT / n_fine) * (jac.T @ jac)
             gradient = gradient + (CURVATURE_WEIGHT / n_fine) * (jac.T @ excess)
         matrix = matrix + (LEVEL_WEIGHT / n_fine) * grid.gram
         gradient = gradient + (LEVEL_WEIGHT / n_fine) * (grid.value.T @ offset)
-        far = np.flatnonzero(offset_excess != 0)
+        far = np.flatnonzero(at["offset_excess"] != 0)
         if len(far):
             matrix = matrix + (OFFSET_WEIGHT / n_fine) * (grid.value[far].T @ grid.value[far])
-            gradient = gradient + (OFFSET_WEIGHT / n_fine) * (grid.value[far].T @ offset_excess[far])
+            gradient = gradient + (OFFSET_WEIGHT / n_fine) * (grid.value[far].T @ at["offset_excess"][far])
         matrix = matrix + self.smoothness * (grid.smooth.T @ grid.smooth)
-        gradient = gradient + self.smoothness * (grid.smooth.T @ smooth)
-        out.update(matrix=matrix.tocsr(), gradient=gradient)
-        return out
+        gradient = gradient + self.smoothness * (grid.smooth.T @ at["smooth"])
+        return {**terms, "matrix": matrix.tocsr(), "gradient": gradient}
 
     def _curvature_excess(self, grid: _Grid, c: np.ndarray, r: np.ndarray, r_u: np.ndarray,
                           r_z: np.ndarray) -> list[tuple[np.ndarray, sp.csr_matrix]]:
@@ -387,17 +398,16 @@ class RayMap:
         figures of the last iterate)."""
         grid = self.grid(heights.shape)
         coef = grid.coef(heights)
-        current = self._terms(grid, coef, goals, True)
+        current = self._linearized(grid, self._terms(grid, coef, goals))
         damping = DAMPING_START
         taken = 0
         for _ in range(iterations):
             diagonal = current["matrix"].diagonal() + 1e-12
             while damping <= DAMPING_MAX:
                 step = _solve(current["matrix"] + damping * sp.diags(diagonal), -current["gradient"])
-                # Most steps are taken: the trial carries what the next step needs.
-                trial = self._terms(grid, coef + step.reshape(coef.shape), goals, True)
+                trial = self._terms(grid, coef + step.reshape(coef.shape), goals)
                 if trial["value"] < current["value"]:
-                    coef, current = coef + step.reshape(coef.shape), trial
+                    coef, current = coef + step.reshape(coef.shape), self._linearized(grid, trial)
                     damping = max(damping / DAMPING_DOWN, 1e-6)
                     taken += 1
                     break
