@@ -160,6 +160,10 @@ class Optimizer:
         """A (rows, cols) preview of one wall."""
         raise NotImplementedError
 
+    def render_all(self, heights: np.ndarray, seed: int) -> list[np.ndarray]:
+        """``render`` of every wall: the previews and the optimizer's final picture."""
+        return [self.render(heights, k, seed) for k in range(len(self.walls))]
+
     def makeable(self, heights: np.ndarray) -> np.ndarray:
         """Project into what the fabrication profile allows (slopes, overhangs, hollows a
         ball-end tool reaches, offsets).

@@ -401,8 +401,7 @@ def optimize(build: Build) -> dict:
         artifacts.write_npz(checkpoint, settings_hash=_settings_hash(build, init_heights), **s.to_arrays())
 
     def preview(s):
-        for k, wall in enumerate(build.walls):
-            img = seed_opt.render(s.heights, k, seed=opt.seed + 1)
+        for wall, img in zip(build.walls, seed_opt.render_all(s.heights, seed=opt.seed + 1)):
             artifacts.write_png(build.path("previews", f"step{s.step:06d}_{wall.name}.png"), img)
 
     bar = tqdm(total=opt.iterations, initial=state.step, desc="optimize", unit="step", disable=opt.iterations == 0,
@@ -428,7 +427,7 @@ def optimize(build: Build) -> dict:
                         height_mm=d.lens.height_mm)
     # The optimizer's own picture of its result: verify compares the exported lens with it.
     artifacts.write_npz(build.path("optimize_render.npz"), **{
-        w.name: seed_opt.render(heights, k, seed=opt.seed + 1) for k, w in enumerate(build.walls)})
+        w.name: img for w, img in zip(build.walls, seed_opt.render_all(heights, seed=opt.seed + 1))})
     log = np.asarray(state.log).reshape(-1, 5)
     with artifacts.atomic_path(build.path("loss.csv")) as tmp:
         np.savetxt(tmp, log, delimiter=",", header="step,level,view,loss,seconds", comments="",
