@@ -25,10 +25,15 @@ def _logsumexp(a: np.ndarray, axis: int) -> np.ndarray:
 def _apply(h: np.ndarray, c1: np.ndarray, c2: np.ndarray, eps: float) -> np.ndarray:
     """log sum_{j1, j2} exp(h[j1, j2] - (c1[i1, j1] + c2[i2, j2]) / eps) for all (i1, i2).
 
-    h: (m1, m2); c1: (n1, m1); c2: (n2, m2) -> (n1, n2).
+    h: (m1, m2); c1: (n1, m1); c2: (n2, m2) -> (n1, n2) float64.  The 3-D temporaries are
+    float32: five times faster than float64 on the apple's transport (128 x 244 lens
+    cells to 64 x 72 pixels), and its maps differ from float64's by 0.04 px (median;
+    0.6 px at most), well inside the landing error that the correction passes remove.
     """
-    inner = _logsumexp(h[:, None, :] - c2[None, :, :] / eps, axis=2)  # (m1, n2)
-    return _logsumexp(inner[None, :, :] - c1[:, :, None] / eps, axis=1)  # (n1, n2)
+    h32 = h.astype(np.float32)
+    c1_eps, c2_eps = (c1 / eps).astype(np.float32), (c2 / eps).astype(np.float32)
+    inner = _logsumexp(h32[:, None, :] - c2_eps[None, :, :], axis=2)  # (m1, n2)
+    return _logsumexp(inner[None, :, :] - c1_eps[:, :, None], axis=1).astype(np.float64)  # (n1, n2)
 
 
 def _log(mass: np.ndarray) -> np.ndarray:
