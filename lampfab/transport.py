@@ -394,8 +394,6 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     bounds how fast the radius may grow upward (atan(dr/dz), never less than the overhang).
     Returns (heights (nu, nv) mm, max tilt deg).
     """
-    from scipy.ndimage import maximum_filter
-
     nu, nv = heights.shape
     # As finely as the check samples it (a creased spline can steepen within the last cell
     # before a seam), and at least 4 samples per cell.
@@ -406,12 +404,15 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     max_rise_deg = 90.0 if max_overhang_deg is None else max_overhang_deg - SLOPE_MARGIN_DEG
 
     def overshoot():
-        tilt, rise = surface.slopes_deg(cyl, heights, *fine)
-        return tilt, tilt - max_tilt_deg, rise - max_rise_deg
+        # As surface.slopes_deg measures them (the tilt's tangent, and dr/dz for the rise).
+        r, r_u, r_z = surface.radius_derivatives(cyl, heights, *fine, order=1)
+        tan_tilt = np.hypot(r_u / r, r_z)
+        return (float(np.degrees(np.arctan(tan_tilt.max()))), _overshoot_deg(tan_tilt, max_tilt_deg),
+                _overshoot_deg(r_z, max_rise_deg))
 
-    tilt, over_tilt, over_rise = overshoot()
+    max_tilt, over_tilt, over_rise = overshoot()
     if over_tilt.max() <= 0 and over_rise.max() <= 0:
-        return heights, float(tilt.max())
+        return heights, max_tilt
     du = 2 * np.pi / nu
     dz = cyl.height_mm / (nv - 1)
     a, b, diff, normal_eq = _edge_system(nu, nv)
@@ -423,7 +424,7 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
 
     def tighten(clamps, over_field):
         # How far each node's neighbourhood (one cell around) overshoots its limit.
-        over = maximum_filter(over_field, size=2 * k + 1, mode=("wrap", "nearest"))[::k, ::k].ravel()
+        over = _around_nodes_max(over_field, k).ravel()
         over_edge = np.maximum(over[a], over[b])
         clamps[over_edge > 0] -= np.maximum(0.5, over_edge[over_edge > 0])
 
@@ -438,13 +439,42 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
         excess = np.maximum(tangent - upper, 0.0) + np.minimum(tangent + limit, 0.0)
         delta = normal_eq.solve(diff.T @ (-excess / r_edge * scale))
         heights = (cyl.radius_mm + heights) * np.exp(delta.reshape(nu, nv) - delta.mean()) - cyl.radius_mm
-        tilt, over_tilt, over_rise = overshoot()
+        max_tilt, over_tilt, over_rise = overshoot()
         if over_tilt.max() <= 0 and over_rise.max() <= 0:
             break
         tighten(clamp, over_tilt)
         tighten(rise_clamp, np.where(np.isfinite(over_rise), over_rise, -1.0))
         rise_clamp[~along_z] = 89.0
-    return heights, float(tilt.max())
+    return heights, max_tilt
+
+
+def _overshoot_deg(tangent: np.ndarray, limit_deg: float) -> np.ndarray:
+    """How far atan(tangent) exceeds ``limit_deg`` (deg) where it does, -1 elsewhere (only
+    the overshoots count): arctan for the few samples near the limit, not for millions."""
+    over = np.full(tangent.shape, -1.0)
+    # A hair under the limit's tangent, so that rounding cannot drop a sample that overshoots.
+    near = tangent > np.tan(np.radians(limit_deg)) * (1.0 - 1e-9)
+    over[near] = np.degrees(np.arctan(tangent[near])) - limit_deg
+    return over
+
+
+def _around_nodes_max(field: np.ndarray, k: int) -> np.ndarray:
+    """(nu, nv): the largest value of ``field`` (nu*k, (nv-1)*k + 1) samples, k per node
+    cell, within one cell of each node (periodic around u, clipped at the ends of z).
+
+    ``maximum_filter(field, 2k + 1, mode=("wrap", "nearest"))[::k, ::k]`` without
+    filtering every sample: from the maxima of the cells on either side of each node and
+    the sample one cell beyond it."""
+    mu, mv = field.shape
+    nu, nv = mu // k, (mv - 1) // k + 1
+    cells = field.reshape(nu, k, mv).max(axis=1)            # cell i: samples i*k .. i*k + k - 1
+    node_rows = field[::k]
+    around_u = np.maximum(np.maximum(np.roll(cells, 1, axis=0), cells), np.roll(node_rows, -1, axis=0))
+    cells = around_u[:, :-1].reshape(nu, nv - 1, k).max(axis=2)
+    out = around_u[:, ::k].copy()                           # the node's own sample
+    out[:, 1:] = np.maximum(out[:, 1:], cells)              # the cell below it
+    out[:, :-1] = np.maximum(np.maximum(out[:, :-1], cells), around_u[:, k::k])  # the cell above, its top sample
+    return out
 
 
 @lru_cache(maxsize=8)

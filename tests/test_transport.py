@@ -194,6 +194,17 @@ def test_slope_projection_meets_the_limit_and_keeps_gentle_parts(cyl, rng):
     assert far.max() < 0.1 * np.abs(heights[40:60]).max() + 0.05
 
 
+@pytest.mark.parametrize("nu, nv, k", [(64, 17, 16), (8, 3, 5), (6, 2, 1)])
+def test_the_overshoot_around_each_node_is_the_filtered_maximum(rng, nu, nv, k):
+    """The slope projection's shortcut gives what a (2k + 1)-sample maximum filter,
+    wrapped around u and clamped at the ends of z, gives at the nodes."""
+    from scipy.ndimage import maximum_filter
+
+    field = rng.standard_normal((nu * k, (nv - 1) * k + 1))
+    expected = maximum_filter(field, size=2 * k + 1, mode=("wrap", "nearest"))[::k, ::k]
+    assert np.array_equal(transport._around_nodes_max(field, k), expected)
+
+
 def test_a_ball_end_tool_radius_keeps_hollows_open(inner_layer, default_design, cyl):
     """A tight dimple the goals ask for: with a 3 mm ball-end tool the fit opens it up."""
     from lampfab import checks_geometry
