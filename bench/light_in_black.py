@@ -102,7 +102,7 @@ def main() -> None:
     for build in args.builds:
         design_path = build / "design.json"
         design = verify.read_design(design_path)
-        walls, images, info = verify.render_design(design_path, 64, int(args.photons), 7, 8, 0.0, place)
+        walls, images, info = verify.render_design(verify.load(design_path), 64, int(args.photons), 7, 8, 0.0, place)
         print(f"\n{build}: share of each wall's light / of it in the target's black / the wall's SSIM without it")
         print("| wall | SSIM | never reflected | " + " | ".join(f"off the {name}" for name in PLACES.values()) + " |")
         print("|---|---|" + "---|" * (1 + len(PLACES)))

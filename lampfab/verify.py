@@ -10,6 +10,7 @@ with its real spread.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,27 @@ def read_design(path) -> dict:
     return design
 
 
-def render_design(design_path, image_px: int, photons: int, seed: int, max_bounces: int,
+@dataclass
+class Loaded:
+    """A design read for tracing: design.json's dict, its folder, its walls and its STL as
+    a ray-tracing scene (read and built once, traced for every light)."""
+    design: dict
+    base: Path
+    walls: list[room.Wall]
+    scene: object  # trace.MeshScene
+
+
+def load(design_path) -> Loaded:
+    from . import stl, trace
+
+    design_path = Path(design_path)
+    design = read_design(design_path)
+    vertices, faces = stl.read_stl(design_path.parent / design["lens"]["stl"])
+    return Loaded(design, design_path.parent, [room.Wall.from_json(w) for w in design["walls"]],
+                  trace.MeshScene(vertices, faces))
+
+
+def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bounces: int,
                   light_radius_mm: float | None = None,
                   reflection_place=None) -> tuple[list[room.Wall], list[np.ndarray], dict]:
     """Trace the design's STL onto its walls.  Returns (walls, flux images, info).
@@ -36,13 +57,9 @@ def render_design(design_path, image_px: int, photons: int, seed: int, max_bounc
     ``light_radius_mm`` None: the design's own light (an LED of its radius, a beam with
     its spread); a number: an LED of that radius (a beam: parallel).
     ``reflection_place``: see ``trace.render_walls``."""
-    from . import stl, trace
+    from . import trace
 
-    design_path = Path(design_path)
-    design = read_design(design_path)
-    base = design_path.parent
-    vertices, faces = stl.read_stl(base / design["lens"]["stl"])
-    walls = [room.Wall.from_json(w) for w in design["walls"]]
+    design, walls = loaded.design, loaded.walls
     shapes = [room.image_shape(w, image_px) for w in walls]
     radius = design["light"]["radius"] if light_radius_mm is None else light_radius_mm
     emitter = None
@@ -50,8 +67,7 @@ def render_design(design_path, image_px: int, photons: int, seed: int, max_bounc
         from .panel import emitter_from_json
 
         emitter = emitter_from_json(design["light"], divergence=light_radius_mm is None)
-    scene = trace.MeshScene(vertices, faces)
-    images, info = trace.render_walls(scene, np.asarray(design["light"]["position"], float), radius,
+    images, info = trace.render_walls(loaded.scene, np.asarray(design["light"]["position"], float), radius,
                                       float(design["material"]["ior"]), walls, shapes, photons, seed,
                                       max_bounces, emitter, reflection_place)
     return walls, images, info
@@ -71,16 +87,16 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
     """
     from . import image
 
-    design_path = Path(design_path)
     out_dir = Path(out_dir)
-    design = read_design(design_path)
-    walls, point, info = render_design(design_path, image_px, photons, seed, max_bounces, 0.0)
-    _, led, led_info = render_design(design_path, image_px, photons, seed + 1, max_bounces)
+    loaded = load(design_path)
+    design = loaded.design
+    walls, point, info = render_design(loaded, image_px, photons, seed, max_bounces, 0.0)
+    _, led, led_info = render_design(loaded, image_px, photons, seed + 1, max_bounces)
     figures = {"walls": {}, "lost_share": info["lost"], "trapped_share": info["trapped"],
                "led_radius_mm": design["light"]["radius"], "photons": photons,
                "real_light": _real_light(design["light"])}
     for k, wall in enumerate(walls):
-        target_path = design_path.parent / design["walls"][k]["target"]
+        target_path = loaded.base / design["walls"][k]["target"]
         target = image.letterbox(artifacts.read_linear_png16(target_path), *point[k].shape)
         sharp = metrics.compare(point[k], target)
         blur = metrics.compare(led[k], target)
