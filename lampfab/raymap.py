@@ -323,13 +323,17 @@ class RayMap:
         n_fine = len(offset)
         k = len(land.index)
         sw = np.sqrt(w)
+        jac = self.jacobian(land)
+        # A photon whose landing has no derivative (one side of a difference totally
+        # reflected) steers nothing in this step.
+        use = use & np.isfinite(jac).all(axis=(1, 2))
         rows = np.broadcast_to(np.arange(2 * k).reshape(k, 2, 1), (k, 2, 3))
         cols = np.broadcast_to(land.corners[:, None, :], (k, 2, 3))
-        jac_v = sp.csr_matrix(((np.where(use[:, None, None], self.jacobian(land), 0.0) * sw[:, None, None]).ravel(),
+        jac_v = sp.csr_matrix(((np.where(use[:, None, None], jac, 0.0) * sw[:, None, None]).ravel(),
                                (rows.ravel(), cols.ravel())), shape=(2 * k, grid.mu * grid.mv))
         per_vertex = (jac_v.T @ jac_v).tocsr()
         matrix = grid.value.T @ per_vertex @ grid.value
-        gradient = grid.value.T @ (jac_v.T @ (residual * sw[:, None]).ravel())
+        gradient = grid.value.T @ (jac_v.T @ (np.where(use[:, None], residual, 0.0) * sw[:, None]).ravel())
         over = np.flatnonzero(slope_excess > 0)
         if len(over):
             t = tan_tilt[over]

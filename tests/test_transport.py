@@ -86,6 +86,31 @@ def test_fit_finds_a_surface_that_lands_photons_at_its_goals(photons, default_de
     assert np.abs(error - error.mean()).max() < 0.5
 
 
+def test_a_photon_without_a_landing_derivative_steers_nothing(photons, default_design, cyl):
+    """Where a difference of the landing is undefined (NaN), the fit's linear system leaves
+    that photon out instead of turning NaN."""
+    walls = room.walls(default_design)
+    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
+    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, 45.0, 20.0, 1e-4)
+    heights = np.zeros((32, 9))
+    grid = fitter.grid(heights.shape)
+    goals = np.zeros((len(wall_of), 2))
+    terms = fitter._terms(grid, grid.coef(heights), goals)
+    exact = fitter._linearized(grid, terms)
+    jacobian = fitter.jacobian
+
+    def with_a_hole(land):
+        jac = jacobian(land)
+        jac[0] = np.nan
+        return jac
+
+    fitter.jacobian = with_a_hole
+    holed = fitter._linearized(grid, terms)
+    assert np.isfinite(holed["matrix"].data).all() and np.isfinite(holed["gradient"]).all()
+    # One photon of thousands: the system barely moves.
+    assert np.abs(holed["gradient"] - exact["gradient"]).max() < 0.05 * np.abs(exact["gradient"]).max()
+
+
 def test_sectors_follow_the_walls_and_skip_light_no_slope_can_reach(default_design):
     import dataclasses
 
