@@ -51,6 +51,12 @@ RISE_TOLERANCE = 0.1
 # profile's, so one overshoot does not slow the rest of the level (without regrowth,
 # chelsea's r fell from 0.981 to 0.915).
 REGROWTH = 1.2
+# The source's ptracer gradient can be NaN at a few vertices of a step (a photon path
+# whose derivative is undefined; the loss itself finite); the spline's adjoint would
+# spread them to every node.  Up to this share of the vertices they are dropped from
+# that step; more is a real fault.  The full `make bench` on a slow machine stopped at the
+# seed's step 449 this way (bench/RESULTS.md).
+MAX_NONFINITE_VERTEX_SHARE = 1e-3
 
 
 @dataclass
@@ -330,6 +336,15 @@ def _best_losses(log: list, level: int) -> dict:
     return best
 
 
+def finite_vertex_gradient(grad: np.ndarray) -> np.ndarray:
+    """(n, 3) per-vertex gradient with non-finite rows set to 0 when they are at most
+    ``MAX_NONFINITE_VERTEX_SHARE`` of the vertices; otherwise unchanged (a fault)."""
+    bad = ~np.isfinite(grad).all(axis=1)
+    if not bad.any() or bad.mean() > MAX_NONFINITE_VERTEX_SHARE:
+        return grad
+    return np.where(bad[:, None], 0.0, grad)
+
+
 def _fault(loss: float, grad: np.ndarray, best: float) -> str | None:
     """What is numerically wrong with a step's loss and gradient, or None."""
     if not np.isfinite(loss):
@@ -398,6 +413,6 @@ class SeedOptimizer(Optimizer):
             dr.clear_grad(positions)
         dr.disable_grad(positions)
         mu, mv = self.fine
-        g = grad_vertices.reshape(-1, 3)[: mu * mv]
+        g = finite_vertex_gradient(grad_vertices.reshape(-1, 3))[: mu * mv]
         g_fine = np.einsum("ij,ij->i", g, self.radial).reshape(mu, mv)
         return total, surface.sample_adjoint(self.cyl, g_fine, *heights.shape)

@@ -103,6 +103,19 @@ def test_seed_method_gives_a_finite_nonzero_gradient(mi, tiny_design, inner_laye
     assert np.isfinite(loss) and np.all(np.isfinite(grad)) and np.abs(grad).max() > 0
 
 
+def test_a_few_nan_vertex_gradients_are_dropped_many_are_a_fault():
+    rng = np.random.default_rng(3)
+    grad = rng.standard_normal((10_000, 3))
+    few = grad.copy()
+    few[[5, 7000]] = np.nan
+    kept = optimize.finite_vertex_gradient(few)
+    assert np.isfinite(kept).all()
+    assert (kept[[5, 7000]] == 0).all() and np.array_equal(np.delete(kept, [5, 7000], 0), np.delete(grad, [5, 7000], 0))
+    many = grad.copy()
+    many[:100, 1] = np.inf
+    assert not np.isfinite(optimize.finite_vertex_gradient(many)).all()  # left for the fault check
+
+
 def test_state_round_trips_through_arrays():
     state = optimize.State(np.arange(12.0).reshape(4, 3), level=1, step=7, lr_scale=0.5,
                            m=np.ones((4, 3)), v=np.full((4, 3), 2.0), adam_t=3, log=[(0, 0, 1, 0.5, 0.1)],
