@@ -2,7 +2,7 @@
 """Time-to-quality: the source's method (``seed``: ptracer from the plain cylinder,
 cyclic views) against lampfab's default (transport init + ``splat`` refinement).
 
-    make bench                      # budgets 30 60 120 300 600 900 s, the bundled apple
+    make bench                      # budgets 30 60 120 180 240 300 450 600 900 s, the bundled apple
     .venv/bin/python bench/bench_methods.py --budgets 30 120 --image examples/star.png
 
 Both run on the same scene (``--profile``, default: lens, room, grid, tessellation, slope
@@ -83,7 +83,7 @@ def _first(rows, r_min):
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--image", default=str(ROOT / "examples" / "apple.png"))
-    ap.add_argument("--budgets", type=float, nargs="+", default=[30, 60, 120, 300, 600, 900])
+    ap.add_argument("--budgets", type=float, nargs="+", default=[30, 60, 120, 180, 240, 300, 450, 600, 900])
     ap.add_argument("--profile", default="default", help="design profile (the scene and lampfab's schedule)")
     ap.add_argument("--seed-steps", type=int, default=0,
                     help="seed's schedule length (default: what fits the largest budget, from its first step)")
