@@ -50,15 +50,14 @@ def place(p, n):
     return dr.select(dr.abs(n.z) > FLAT_NZ, mi.UInt32(3), dr.select(radial < 0, mi.UInt32(1), mi.UInt32(2)))
 
 
-def lens_cells(build: Path, design: dict, walls, blacks: list[np.ndarray], photons: int, seed: int) -> None:
+def lens_cells(loaded: verify.Loaded, blacks: list[np.ndarray], photons: int, seed: int) -> None:
     """Print, per wall, the lens cells whose direct light lands in ``blacks`` ((rows,
     cols) bool per wall) most: traced with a point light as verify does."""
-    from lampfab import stl, trace
+    from lampfab import trace
     from lampfab.mi_env import mitsuba
 
     mi = mitsuba()
-    vertices, faces = stl.read_stl(build / design["lens"]["stl"])
-    scene = trace.MeshScene(vertices, faces)
+    design, walls = loaded.design, loaded.walls
     shapes = [b.shape for b in blacks]
     exits, pixels = [], []
 
@@ -68,10 +67,10 @@ def lens_cells(build: Path, design: dict, walls, blacks: list[np.ndarray], photo
         pixels.append(trace.pixel_hits(mi, walls, shapes, o, d)[direct])
 
     o, d = trace.emit(mi, np.asarray(design["light"]["position"], float), 0.0, photons, seed)
-    trace.propagate(mi, scene.scene, o, d, float(design["material"]["ior"]), seed, 8, on_escape)
+    trace.propagate(mi, loaded.scene.scene, o, d, float(design["material"]["ior"]), seed, 8, on_escape)
     points, pixel = np.concatenate(exits), np.concatenate(pixels)
     u = np.degrees(np.arctan2(points[:, 1], points[:, 0])) % 360.0
-    bins = [np.arange(0.0, 360.0 + CELL_DEG, CELL_DEG), np.arange(0.0, vertices[:, 2].max() + CELL_MM, CELL_MM)]
+    bins = [np.arange(0.0, 360.0 + CELL_DEG, CELL_DEG), np.arange(0.0, points[:, 2].max() + CELL_MM, CELL_MM)]
     offset = 0
     for wall, black in zip(walls, blacks):
         local = pixel - offset
@@ -100,9 +99,9 @@ def main() -> None:
                         help="also list the lens cells whose direct light lands in the black (4 M more photons)")
     args = parser.parse_args()
     for build in args.builds:
-        design_path = build / "design.json"
-        design = verify.read_design(design_path)
-        walls, images, info = verify.render_design(verify.load(design_path), 64, int(args.photons), 7, 8, 0.0, place)
+        loaded = verify.load(build / "design.json")
+        design, walls = loaded.design, loaded.walls
+        images, info = verify.render_design(loaded, 64, int(args.photons), 7, 8, 0.0, place)
         print(f"\n{build}: share of each wall's light / of it in the target's black / the wall's SSIM without it")
         print("| wall | SSIM | never reflected | " + " | ".join(f"off the {name}" for name in PLACES.values()) + " |")
         print("|---|---|" + "---|" * (1 + len(PLACES)))
@@ -121,7 +120,7 @@ def main() -> None:
                              f"{metrics.ssim(total - part, target):.2f}")
             print(f"| {wall.name} | {metrics.ssim(total, target):.3f} | " + " | ".join(cells) + " |")
         if args.lens_cells:
-            lens_cells(build, design, walls, blacks, 4_000_000, 3)
+            lens_cells(loaded, blacks, 4_000_000, 3)
 
 
 if __name__ == "__main__":

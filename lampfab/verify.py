@@ -51,8 +51,8 @@ def load(design_path) -> Loaded:
 
 def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bounces: int,
                   light_radius_mm: float | None = None,
-                  reflection_place=None) -> tuple[list[room.Wall], list[np.ndarray], dict]:
-    """Trace the design's STL onto its walls.  Returns (walls, flux images, info).
+                  reflection_place=None) -> tuple[list[np.ndarray], dict]:
+    """Trace the design's STL onto its walls (``loaded.walls``).  Returns (flux images, info).
 
     ``light_radius_mm`` None: the design's own light (an LED of its radius, a beam with
     its spread); a number: an LED of that radius (a beam: parallel).
@@ -70,7 +70,7 @@ def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bo
     images, info = trace.render_walls(loaded.scene, np.asarray(design["light"]["position"], float), radius,
                                       float(design["material"]["ior"]), walls, shapes, photons, seed,
                                       max_bounces, emitter, reflection_place)
-    return walls, images, info
+    return images, info
 
 
 def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bounces: int) -> dict:
@@ -90,8 +90,9 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
     out_dir = Path(out_dir)
     loaded = load(design_path)
     design = loaded.design
-    walls, point, info = render_design(loaded, image_px, photons, seed, max_bounces, 0.0)
-    _, led, led_info = render_design(loaded, image_px, photons, seed + 1, max_bounces)
+    walls = loaded.walls
+    point, info = render_design(loaded, image_px, photons, seed, max_bounces, 0.0)
+    led, led_info = render_design(loaded, image_px, photons, seed + 1, max_bounces)
     figures = {"walls": {}, "lost_share": info["lost"], "trapped_share": info["trapped"],
                "led_radius_mm": design["light"]["radius"], "photons": photons,
                "real_light": _real_light(design["light"])}
