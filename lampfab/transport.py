@@ -36,6 +36,20 @@ from .room import SECTOR_WIDTH_DEG, Wall
 # spline at other points than the projection does.
 SLOPE_MARGIN_DEG = 0.2
 
+# Where the spline overshoots a limit, the slope projection cuts the steep edges around
+# that place from their own slope, not from their clamp: edges within this much of their
+# clamp count as steep.  An overshoot often sits where slopes along u and z add up to the
+# tilt, or where the spline bends past its node-to-node slopes, with every edge well under
+# its clamp; tightening the clamp 0.5° per pass took ~20 passes to reach them (the 3-axis
+# milled apple: 23.6 passes per call, 3.8 this way).  10°, not more: flatter edges beside
+# an overshoot rarely cause it, and cutting them moved the surface 19-46 % further.
+STEEP_EDGE_DEG = 10.0
+
+# The least a clamp tightens per pass where the spline still overshoots: a quarter degree
+# moved the surface 5 % less than the projection did before this rule, half a degree 20 %
+# more, for the same number of passes.
+CLAMP_STEP_DEG = 0.25
+
 # Rounds of hollow smoothing and slope projection in turn (``limit_shape``).  On every lens
 # measured the first round left both within their limits.
 SHAPE_ROUNDS = 3
@@ -389,9 +403,10 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     Node-to-node slopes steeper than a clamp are cut back to it, and only that
     correction is integrated (least squares), so detail elsewhere is kept.  Where the
     spline still overshoots between nodes (or at the caps, where its end condition
-    bends it), the clamp of the edges around that place tightens by the overshoot (at
-    least half a degree) per pass; elsewhere it stays just under the limit.  The overhang
-    bounds how fast the radius may grow upward (atan(dr/dz), never less than the overhang).
+    bends it), the clamps of the steep edges around that place drop to the edges' own
+    slopes less the overshoot (at least ``CLAMP_STEP_DEG``) per pass; elsewhere they stay
+    just under the limit.  The overhang bounds how fast the radius may grow upward
+    (atan(dr/dz), never less than the overhang).
     Returns (heights (nu, nv) mm, max tilt deg).
     """
     nu, nv = heights.shape
@@ -422,18 +437,22 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     clamp = np.full(m, max_tilt_deg - 0.5)
     rise_clamp = np.where(along_z, min(max_rise_deg, max_tilt_deg) - 0.5, 89.0)
 
-    def tighten(clamps, over_field):
+    def edge_tangents():
+        # Along u, d ln r / du = (dr/du) / r; along z, dr/dz.  Returns them and r per edge.
+        r_edge = np.concatenate([np.full(nu * nv, 1.0), (cyl.radius_mm + heights[:, 1:]).ravel()])
+        return diff @ np.log(cyl.radius_mm + heights).ravel() / scale * r_edge, r_edge
+
+    def tighten(clamps, over_field, edge_deg):
         # How far each node's neighbourhood (one cell around) overshoots its limit.
         over = _around_nodes_max(over_field, k).ravel()
         over_edge = np.maximum(over[a], over[b])
-        clamps[over_edge > 0] -= np.maximum(0.5, over_edge[over_edge > 0])
+        hit = over_edge > 0
+        steep = hit & (edge_deg > clamps - STEEP_EDGE_DEG)
+        clamps[steep] = np.minimum(clamps[steep], edge_deg[steep])
+        clamps[hit] -= np.maximum(CLAMP_STEP_DEG, over_edge[hit])
 
+    tangent, r_edge = edge_tangents()
     for _ in range(passes):
-        # Edge slopes as tangents: along u, d ln r / du = (dr/du) / r; along z, dr/dz.
-        rho = np.log(cyl.radius_mm + heights)
-        edge = diff @ rho.ravel()
-        r_edge = np.concatenate([np.full(nu * nv, 1.0), (cyl.radius_mm + heights[:, 1:]).ravel()])
-        tangent = edge / scale * r_edge
         limit = np.tan(np.radians(clamp))
         upper = np.minimum(limit, np.tan(np.radians(rise_clamp)))
         excess = np.maximum(tangent - upper, 0.0) + np.minimum(tangent + limit, 0.0)
@@ -442,8 +461,10 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
         max_tilt, over_tilt, over_rise = overshoot()
         if over_tilt.max() <= 0 and over_rise.max() <= 0:
             break
-        tighten(clamp, over_tilt)
-        tighten(rise_clamp, np.where(np.isfinite(over_rise), over_rise, -1.0))
+        tangent, r_edge = edge_tangents()
+        edge_deg = np.degrees(np.arctan(tangent))
+        tighten(clamp, over_tilt, np.abs(edge_deg))
+        tighten(rise_clamp, np.where(np.isfinite(over_rise), over_rise, -1.0), edge_deg)
         rise_clamp[~along_z] = 89.0
     return heights, max_tilt
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lampfab import concavity, profile, raymap, room, surface, trace, transport
+from lampfab import checks_geometry, concavity, profile, raymap, room, surface, trace, transport
 
 
 def _nominal(walls):
@@ -207,7 +207,8 @@ def test_slope_projection_meets_the_limit_and_keeps_gentle_parts(cyl, rng):
     z = np.arange(nv)[None, :]
     heights += 0.3 * np.sin(2 * np.pi * 3 * u / nu) * np.cos(np.pi * z / (nv - 1))
     heights[10:14, 6:10] += 8.0
-    fine = surface.fine_shape(nu, nv, 4)
+    # As finely as the fabrication check samples the spline, and the projection with it.
+    fine = surface.fine_shape(nu, nv, checks_geometry.SAMPLES[0] // nu)
     before = surface.slopes_deg(cyl, heights, *fine)[0].max()
     assert before > 45.0
     limited, tilt = transport.limit_slopes(cyl, heights, 45.0)
@@ -217,6 +218,24 @@ def test_slope_projection_meets_the_limit_and_keeps_gentle_parts(cyl, rng):
     # Far from the bump the ripples survive almost unchanged.
     far = np.abs(limited - heights)[40:60]
     assert far.max() < 0.1 * np.abs(heights[40:60]).max() + 0.05
+
+
+def test_slopes_that_add_up_to_the_tilt_are_projected_in_a_few_passes(cyl):
+    """A diagonal ramp: 33° around and 33° up make 42.6° of tilt, so a 40° limit is
+    exceeded with every node-to-node slope well under its clamp.  The clamps there start
+    from the edges' own slopes, so a few passes suffice (tightening them from the limit
+    by half a degree a pass took 8)."""
+    nu, nv = 64, 17
+    u = np.arange(nu)[:, None] * 2 * np.pi / nu
+    z = cyl.node_z(nv)[None, :]
+    slope = np.tan(np.radians(33.0))
+    # d ln r / du and dr/dz both 33°, over a patch 0.6 rad around and 40 mm up.
+    radius = cyl.radius_mm * np.exp(slope * np.minimum(u, 0.6)) + slope * (np.clip(z, 20.0, 60.0) - 20.0)
+    heights = radius - cyl.radius_mm
+    fine = surface.fine_shape(nu, nv, 16)
+    assert surface.slopes_deg(cyl, heights, *fine)[0].max() > 41.0
+    limited, tilt = transport.limit_slopes(cyl, heights, 40.0, passes=4)
+    assert tilt <= 40.0 - transport.SLOPE_MARGIN_DEG + 1e-9
 
 
 @pytest.mark.parametrize("nu, nv, k", [(64, 17, 16), (8, 3, 5), (6, 2, 1)])
@@ -232,8 +251,6 @@ def test_the_overshoot_around_each_node_is_the_filtered_maximum(rng, nu, nv, k):
 
 def test_a_ball_end_tool_radius_keeps_hollows_open(inner_layer, default_design, cyl):
     """A tight dimple the goals ask for: with a 3 mm ball-end tool the fit opens it up."""
-    from lampfab import checks_geometry
-
     walls = room.walls(default_design)
     light = room.light_position(default_design)
     dense = raymap.stratified_photons(*inner_layer, light, 1.5, 512, 256, seed=3)
