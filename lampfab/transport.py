@@ -40,14 +40,16 @@ SLOPE_MARGIN_DEG = 0.2
 # that place from their own slope, not from their clamp: edges within this much of their
 # clamp count as steep.  An overshoot often sits where slopes along u and z add up to the
 # tilt, or where the spline bends past its node-to-node slopes, with every edge well under
-# its clamp; tightening the clamp 0.5° per pass took ~20 passes to reach them (the 3-axis
-# milled apple: 23.6 passes per call, 3.8 this way).  10°, not more: flatter edges beside
-# an overshoot rarely cause it, and cutting them moved the surface 19-46 % further.
+# its clamp; tightening the clamps 0.5° a pass from the limit took ~20 passes to reach
+# them (the 3-axis milled apple: 23.6 passes per call, 3.8 this way).  Cutting every edge
+# around an overshoot instead moved the surface 46 % further than that old rule, the
+# edges within 20° 35 %, within 10° 19 % (bench/RESULTS.md, "The slope projection in a
+# few passes").
 STEEP_EDGE_DEG = 10.0
 
-# The least a clamp tightens per pass where the spline still overshoots: a quarter degree
-# moved the surface 5 % less than the projection did before this rule, half a degree 20 %
-# more, for the same number of passes.
+# The least a clamp tightens per pass where the spline still overshoots: with a quarter
+# degree the projection moved the surface 4 % less than the old rule, with half a degree
+# 19 % more, in about as many passes.
 CLAMP_STEP_DEG = 0.25
 
 # Rounds of hollow smoothing and slope projection in turn (``limit_shape``).  On every lens
