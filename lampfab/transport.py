@@ -444,13 +444,15 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
         r_edge = np.concatenate([np.full(nu * nv, 1.0), (cyl.radius_mm + heights[:, 1:]).ravel()])
         return diff @ np.log(cyl.radius_mm + heights).ravel() / scale * r_edge, r_edge
 
-    def tighten(clamps, over_field, edge_deg):
+    def tighten(clamps, over_field, edge_tangent):
         # How far each node's neighbourhood (one cell around) overshoots its limit.
         over = _around_nodes_max(over_field, k).ravel()
         over_edge = np.maximum(over[a], over[b])
-        hit = over_edge > 0
-        steep = hit & (edge_deg > clamps - STEEP_EDGE_DEG)
-        clamps[steep] = np.minimum(clamps[steep], edge_deg[steep])
+        hit = np.flatnonzero(over_edge > 0)
+        # The edges' slopes (deg) only there: arctan for the few, not every edge.
+        edge_deg = np.degrees(np.arctan(edge_tangent[hit]))
+        steep = edge_deg > clamps[hit] - STEEP_EDGE_DEG
+        clamps[hit[steep]] = np.minimum(clamps[hit[steep]], edge_deg[steep])
         clamps[hit] -= np.maximum(CLAMP_STEP_DEG, over_edge[hit])
 
     tangent, r_edge = edge_tangents()
@@ -464,9 +466,8 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
         if over_tilt.max() <= 0 and over_rise.max() <= 0:
             break
         tangent, r_edge = edge_tangents()
-        edge_deg = np.degrees(np.arctan(tangent))
-        tighten(clamp, over_tilt, np.abs(edge_deg))
-        tighten(rise_clamp, np.where(np.isfinite(over_rise), over_rise, -1.0), edge_deg)
+        tighten(clamp, over_tilt, np.abs(tangent))
+        tighten(rise_clamp, np.where(np.isfinite(over_rise), over_rise, -1.0), tangent)
         rise_clamp[~along_z] = 89.0
     return heights, max_tilt
 

@@ -232,7 +232,7 @@ def test_slopes_that_add_up_to_the_tilt_are_projected_in_a_few_passes(cyl):
     # d ln r / du and dr/dz both 33°, over a patch 0.6 rad around and 40 mm up.
     radius = cyl.radius_mm * np.exp(slope * np.minimum(u, 0.6)) + slope * (np.clip(z, 20.0, 60.0) - 20.0)
     heights = radius - cyl.radius_mm
-    fine = surface.fine_shape(nu, nv, 16)
+    fine = surface.fine_shape(nu, nv, checks_geometry.SAMPLES[0] // nu)
     assert surface.slopes_deg(cyl, heights, *fine)[0].max() > 41.0
     limited, tilt = transport.limit_slopes(cyl, heights, 40.0, passes=4)
     assert tilt <= 40.0 - transport.SLOPE_MARGIN_DEG + 1e-9
