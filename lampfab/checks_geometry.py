@@ -167,6 +167,15 @@ def _settle_side(xyz: np.ndarray, dist: np.ndarray, side: np.ndarray, vertices: 
     return out
 
 
+def fundamental_forms(r, r_u, r_z, r_uu, r_uz, r_zz) -> tuple[np.ndarray, ...]:
+    """(E, F, G, L, M, N): the first and second fundamental forms of the surface on the
+    sample grid, from the radius and its derivatives (``concave_radius_of`` has the
+    frame and the sign).  L / E and N / G are the normal curvatures along u and z."""
+    n_len = np.sqrt(r**2 + r_u**2 + (r * r_z) ** 2)
+    return (r_u**2 + r**2, r_u * r_z, r_z**2 + 1.0, ((r_uu - r) * r - 2 * r_u**2) / n_len,
+            (r_uz * r - r_z * r_u) / n_len, r_zz * r / n_len)
+
+
 def concave_radius_of(r, r_u, r_z, r_uu, r_uz, r_zz) -> np.ndarray:
     """(mu, mv) mm: 1 / (largest principal curvature) where it is concave, inf elsewhere.
 
@@ -176,13 +185,7 @@ def concave_radius_of(r, r_u, r_z, r_uu, r_uz, r_zz) -> np.ndarray:
     has negative normal curvature; positive curvature curves toward the outside, i.e. a
     hollow that a ball of radius > 1/kappa cannot touch the bottom of.
     """
-    n_len = np.sqrt(r**2 + r_u**2 + (r * r_z) ** 2)
-    E = r_u**2 + r**2
-    F = r_u * r_z
-    G = r_z**2 + 1.0
-    L = ((r_uu - r) * r - 2 * r_u**2) / n_len
-    M = (r_uz * r - r_z * r_u) / n_len
-    N = r_zz * r / n_len
+    E, F, G, L, M, N = fundamental_forms(r, r_u, r_z, r_uu, r_uz, r_zz)
     det_i = E * G - F**2
     mean = (E * N - 2 * F * M + G * L) / (2 * det_i)
     gauss = (L * N - M**2) / det_i

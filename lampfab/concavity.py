@@ -20,20 +20,34 @@ from . import checks_geometry, surface
 # more than the samples show.
 RADIUS_MARGIN = 0.02
 
-# Each pass moves a flagged node this share of the way to its four neighbours' mean:
-# half removes a one-node ripple in a pass and changes broad shape slowly.
+# Each pass moves the nodes near a too-tight hollow part of the way to their four
+# neighbours' mean: as far as the tightest hollow each shapes is too tight (goal / radius
+# - 1), plus RATE_FLOOR so that the last passes still move, at most SMOOTHING (half
+# removes a one-node ripple in a pass).
+# A fixed half-way step smoothed every hollow's flanks as hard as its bottom, and the
+# refinement's 40 steps widened the milled apple's seam valleys from ~6° of u (the
+# transport's) to ~9°: its light sweeps across the black there.  Measured on the milled
+# apple (bench/RESULTS.md, "Hollows opened no wider than the tool needs").
 SMOOTHING = 0.5
+RATE_FLOOR = 0.2
 
 # A cubic B-spline node shapes the surface two cells to each side: flagged samples mark
 # the nodes within this many cells.
 SUPPORT_CELLS = 2
 
+# The interpolating spline's response to one node's change falls by 2 - sqrt(3) ~ 0.27
+# per node: beyond this many nodes from the nodes a pass moved it is below 1e-7 of the
+# change, so a pass measures the hollows again only there (the passes took half of the
+# milled apple's optimize when they measured all of it).  The result is measured whole.
+REMEASURE_NODES = 12
 
-def concave_radius(cyl: surface.Cylinder, heights: np.ndarray) -> np.ndarray:
+
+def concave_radius(cyl: surface.Cylinder, heights: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
     """(mu, mv) mm: the smallest concave radius of curvature on the check's samples
-    (``checks_geometry.SAMPLES``), inf where the surface is convex."""
+    (``checks_geometry.SAMPLES``), inf where the surface is convex; with ``rows`` (k,)
+    int, only those sample rows around ((k, mv))."""
     mu, mv = checks_geometry.sample_counts(heights.shape)
-    return checks_geometry.concave_radius_of(*surface.radius_derivatives(cyl, heights, mu, mv))
+    return checks_geometry.concave_radius_of(*surface.radius_derivatives(cyl, heights, mu, mv, rows=rows))
 
 
 def limit_concavity(cyl: surface.Cylinder, heights: np.ndarray, tool_radius_mm: float,
@@ -42,7 +56,8 @@ def limit_concavity(cyl: surface.Cylinder, heights: np.ndarray, tool_radius_mm: 
     reaches its bottom.  Returns (heights (nu, nv) mm, smallest concave radius mm).
 
     Only the nodes that shape a too-tight hollow move (a Laplacian step towards their
-    neighbours, periodic around, one-sided at the caps), so detail elsewhere is kept.
+    neighbours as long as the hollow is too tight, periodic around, one-sided at the
+    caps), so detail elsewhere is kept.
     With ``tool_radius_mm`` 0 (a print) the heights are returned as they are."""
     heights = np.asarray(heights, np.float64)
     radius = concave_radius(cyl, heights)
@@ -60,14 +75,46 @@ def limit_concavity(cyl: surface.Cylinder, heights: np.ndarray, tool_radius_mm: 
         tight = radius < goal
         if not tight.any():
             break
-        flagged = np.zeros((nu, nv), bool)
+        too_tight = np.zeros((nu, nv))
         rows, cols = np.nonzero(tight)
-        flagged[node_u[rows], node_z[cols]] = True
-        flagged = maximum_filter(flagged, size=size, mode=("wrap", "nearest"))
+        np.maximum.at(too_tight, (node_u[rows], node_z[cols]), goal / radius[rows, cols] - 1.0)
+        too_tight = maximum_filter(too_tight, size=size, mode=("wrap", "nearest"))
+        rate = np.where(too_tight > 0, np.minimum(SMOOTHING, too_tight + RATE_FLOOR), 0.0)
         vertical = np.zeros_like(heights)
         vertical[:, :-1] += heights[:, 1:]
         vertical[:, 1:] += heights[:, :-1]
         mean = (np.roll(heights, 1, 0) + np.roll(heights, -1, 0) + vertical) / neighbours
-        heights = np.where(flagged, heights + SMOOTHING * (mean - heights), heights)
-        radius = concave_radius(cyl, heights)
-    return heights, float(radius.min())
+        heights = heights + rate * (mean - heights)
+        moved = maximum_filter((rate > 0).any(axis=1), size=2 * REMEASURE_NODES + 1, mode="wrap")
+        rows = np.flatnonzero(moved[node_u])
+        radius[rows] = concave_radius(cyl, heights, rows)
+    return heights, float(concave_radius(cyl, heights).min())
+
+
+def hollow_penalty(cyl: surface.Cylinder, heights: np.ndarray, max_curvature: float,
+                   samples_per_cell: int = 2) -> tuple[float, np.ndarray]:
+    """Mean squared excess of the hollow normal curvature along u and along z over
+    ``max_curvature`` (1/mm), in units of it, on a grid finer than the nodes; and its
+    gradient on the (nu, nv) nodes (per mm).
+
+    Keeps the refinement's steps from cutting hollows the projection must then open
+    again (``limit_concavity``).  The gradient keeps the second-derivative terms only,
+    which dominate where a hollow is tight (as the transport fit's Jacobian does): a
+    descent direction, not the exact gradient."""
+    nu, nv = heights.shape
+    mu, mv = surface.fine_shape(nu, nv, samples_per_cell)
+    derivatives = surface.radius_derivatives(cyl, heights, mu, mv, order=2)
+    r, r_u, r_z = derivatives[:3]
+    E, _, G, L, _, N = checks_geometry.fundamental_forms(*derivatives)
+    n_len = np.sqrt(r**2 + r_u**2 + (r * r_z) ** 2)
+    excess_u = np.maximum(L / E - max_curvature, 0.0) / max_curvature
+    excess_z = np.maximum(N / G - max_curvature, 0.0) / max_curvature
+    n = excess_u.size
+    penalty = float(np.sum(excess_u**2 + excess_z**2) / n)
+    # d(L/E)/d r_uu = r / (n_len E), d(N/G)/d r_zz = r / (n_len G).
+    d_uu = 2 * excess_u / (max_curvature * n) * r / (n_len * E)
+    d_zz = 2 * excess_z / (max_curvature * n) * r / (n_len * G)
+    creased = cyl.creased
+    grad = (surface.u_matrix(nu, mu, 2, creased).T @ d_uu @ surface.open_matrix(nv, mv)
+            + surface.u_matrix(nu, mu, 0, creased).T @ d_zz @ surface.open_matrix(nv, mv, 2) / cyl.height_mm**2)
+    return penalty, grad

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import lens, losses, scene, surface
+from .concavity import hollow_penalty
 from .errors import LampfabError
 from .profile import Optimize
 from .room import Wall
@@ -36,6 +37,11 @@ MAX_FALLBACKS = 10
 # after each step has little to do.  Without the overhang in it, 0.7 % of the horse's
 # surface overhung the print's 45° by up to 10° (bench/RESULTS.md).
 PENALTY_MARGIN_DEG = 2.0
+# The hollow penalty (milled lenses) starts at this many times the tool's radius: the
+# projection then rarely has to open a hollow after a step, and each time it does it
+# widens the hollow's flanks too (bench/RESULTS.md, "Hollows opened no wider than the
+# tool needs").
+HOLLOW_PENALTY_MARGIN = 1.2
 # With ``backtrack``, a step is taken again, half as long, when the loss after it is
 # more than this fraction above the loss before it. Adam's first steps on a level move
 # every node by the learning rate, whatever its gradient: from the transport design the
@@ -261,6 +267,11 @@ class Optimizer:
                     None if self.max_overhang is None else self.max_overhang - PENALTY_MARGIN_DEG)
                 loss += opt.slope_weight * penalty
                 grad_full = grad_full + opt.slope_weight * penalty_grad
+                if self.tool_radius > 0:
+                    penalty, penalty_grad = hollow_penalty(self.cyl, state.heights,
+                                                           1.0 / (HOLLOW_PENALTY_MARGIN * self.tool_radius))
+                    loss += opt.hollow_weight * penalty
+                    grad_full = grad_full + opt.hollow_weight * penalty_grad
                 grad = surface.sample_adjoint(self.cyl, grad_full, *grid)
                 fault = _fault(loss, grad, best.get(key, math.inf))
                 if fault is None and opt.backtrack:

@@ -96,6 +96,8 @@ class Optimize:
                                                  "(the lens's top and bottom need the steepest slopes)")
     smoothness: float = _spec(1e-2, 0.0, 10.0, doc="curvature penalty of the transport's surface fit")
     slope_weight: float = _spec(200.0, 0.0, 1e6, doc="weight of the slope and overhang penalty in the loss")
+    hollow_weight: float = _spec(2000.0, 0.0, 1e6, doc="weight of the hollow penalty in the loss (milled "
+                                                       "lenses: hollows the ball-end tool reaches)")
     preview_every: int = _spec(50, 1, 1_000_000, doc="preview images every N steps")
     checkpoint_every: int = _spec(20, 1, 1_000_000, doc="checkpoint every N steps")
     seed: int = _spec(0, 0, 2**31 - 1, doc="random seed")

@@ -274,13 +274,16 @@ def closed_outer_mesh(cyl: Cylinder, heights: np.ndarray, tessellation: int) -> 
     return np.vstack([verts, centres]), np.vstack([faces, caps])
 
 
-def radius_derivatives(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int, order: int = 2) -> tuple[np.ndarray, ...]:
+def radius_derivatives(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int, order: int = 2,
+                       rows: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
     """The radius (mm) and its derivatives by u (rad) and z (mm) on the (mu, mv) sample
     grid, from the spline itself (exact: curvature needs second derivatives, which
     differencing would make noisy).  Returns (r, r_u, r_z), each (mu, mv), and with
-    ``order`` 2 also (r_uu, r_uz, r_zz)."""
+    ``order`` 2 also (r_uu, r_uz, r_zz); with ``rows`` (k,) int, only those sample rows
+    around (each (k, mv))."""
     nu, nv = heights.shape
-    along_u = [u_matrix(nu, mu, d, cyl.creased) @ heights for d in range(order + 1)]
+    pick = slice(None) if rows is None else rows
+    along_u = [u_matrix(nu, mu, d, cyl.creased)[pick] @ heights for d in range(order + 1)]
     pz = [open_matrix(nv, mv, d).T / cyl.height_mm**d for d in range(order + 1)]
     first = (cyl.radius_mm + along_u[0] @ pz[0], along_u[1] @ pz[0], along_u[0] @ pz[1])
     if order < 2:

@@ -313,6 +313,46 @@ def test_hollow_smoothing_opens_what_a_ball_end_tool_cannot_reach():
     assert np.array_equal(same, heights)
 
 
+def _grooved(depth_mm: float) -> np.ndarray:
+    """Broad ripples and one groove up the lens, three nodes wide, on 128 x 17 nodes."""
+    u, z = np.arange(128)[:, None], np.arange(17)[None, :]
+    heights = 0.3 * np.sin(2 * np.pi * 3 * u / 128) * np.cos(np.pi * z / 16)
+    heights[60:63, 4:13] -= depth_mm * np.array([0.5, 1.0, 0.5])[:, None]
+    return heights
+
+
+def test_hollow_smoothing_opens_a_groove_no_wider_than_the_tool_needs(monkeypatch):
+    """Each node moves as far as its hollow is too tight: less change than a fixed
+    half-way step, and the groove ends close to the tool's radius, not far past it."""
+    cyl = surface.Cylinder(45.0, 90.0)
+    goal = 3.0 * (1 + concavity.RADIUS_MARGIN)
+    for depth in (1.0, 2.0):
+        heights = _grooved(depth)
+        assert concavity.concave_radius(cyl, heights).min() < 3.0
+        adaptive, radius = concavity.limit_concavity(cyl, heights, 3.0)
+        with monkeypatch.context() as m:
+            m.setattr(concavity, "RATE_FLOOR", concavity.SMOOTHING)   # every flagged node half-way
+            fixed, fixed_radius = concavity.limit_concavity(cyl, heights, 3.0)
+        assert goal <= radius <= 1.1 * goal and fixed_radius >= goal
+        assert np.linalg.norm(adaptive - heights) < 0.95 * np.linalg.norm(fixed - heights)
+    assert fixed_radius > 1.2 * goal                                  # the fixed step overshoots
+
+
+def test_hollow_penalty_charges_only_hollows_tighter_than_its_limit():
+    cyl = surface.Cylinder(45.0, 90.0)
+    heights = _grooved(2.0)
+    assert concavity.hollow_penalty(cyl, heights, 1.0 / 50.0)[0] > 0
+    gentle, gentle_grad = concavity.hollow_penalty(cyl, _grooved(0.0), 1.0 / 5.0)
+    assert gentle == 0.0 and not gentle_grad.any()
+    penalty, grad = concavity.hollow_penalty(cyl, heights, 1.0 / 5.0)
+    assert penalty > 0
+    far = np.r_[0:45, 78:128]
+    assert np.abs(grad[far]).max() < 1e-3 * np.abs(grad).max()        # charged at the groove only
+    # A descent direction: a short step against it lowers the penalty.
+    step = 1e-3 / np.abs(grad).max()
+    assert concavity.hollow_penalty(cyl, heights - step * grad, 1.0 / 5.0)[0] < penalty
+
+
 def test_shape_limits_hold_together_after_projection():
     cyl = surface.Cylinder(45.0, 90.0)
     rng = np.random.default_rng(4)
