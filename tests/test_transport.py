@@ -294,14 +294,18 @@ def test_a_print_may_face_up_steeply_but_not_down(cyl):
             assert -rise.min() > 50.0
 
 
+def _grooved(depth_mm: float) -> np.ndarray:
+    """Broad ripples and one groove up the lens, three nodes wide, on 128 x 17 nodes
+    (2.2 mm apart around)."""
+    u, z = np.arange(128)[:, None], np.arange(17)[None, :]
+    heights = 0.3 * np.sin(2 * np.pi * 3 * u / 128) * np.cos(np.pi * z / 16)
+    heights[60:63, 4:13] -= depth_mm * np.array([0.5, 1.0, 0.5])[:, None]
+    return heights
+
+
 def test_hollow_smoothing_opens_what_a_ball_end_tool_cannot_reach():
     cyl = surface.Cylinder(45.0, 90.0)
-    nu, nv = 128, 17
-    u = np.arange(nu)[:, None]
-    z = np.arange(nv)[None, :]
-    # Broad ripples everywhere, and one narrow groove up the lens (nodes 2.2 mm apart).
-    heights = 0.3 * np.sin(2 * np.pi * 3 * u / nu) * np.cos(np.pi * z / (nv - 1))
-    heights[60:63, 4:13] -= np.array([1.0, 2.0, 1.0])[:, None]
+    heights = _grooved(2.0)
     assert concavity.concave_radius(cyl, heights).min() < 3.0
     smoothed, radius = concavity.limit_concavity(cyl, heights, 3.0)
     assert radius >= 3.0 and np.isclose(radius, concavity.concave_radius(cyl, smoothed).min())
@@ -311,14 +315,6 @@ def test_hollow_smoothing_opens_what_a_ball_end_tool_cannot_reach():
     # No tool (a print): nothing to do.
     same, _ = concavity.limit_concavity(cyl, heights, 0.0)
     assert np.array_equal(same, heights)
-
-
-def _grooved(depth_mm: float) -> np.ndarray:
-    """Broad ripples and one groove up the lens, three nodes wide, on 128 x 17 nodes."""
-    u, z = np.arange(128)[:, None], np.arange(17)[None, :]
-    heights = 0.3 * np.sin(2 * np.pi * 3 * u / 128) * np.cos(np.pi * z / 16)
-    heights[60:63, 4:13] -= depth_mm * np.array([0.5, 1.0, 0.5])[:, None]
-    return heights
 
 
 def test_hollow_smoothing_opens_a_groove_no_wider_than_the_tool_needs(monkeypatch):
