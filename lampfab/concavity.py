@@ -59,7 +59,7 @@ def limit_concavity(cyl: surface.Cylinder, heights: np.ndarray, tool_radius_mm: 
     neighbours as long as the hollow is too tight, periodic around, one-sided at the
     caps), so detail elsewhere is kept.
     With ``tool_radius_mm`` 0 (a print) the heights are returned as they are."""
-    heights = np.asarray(heights, np.float64)
+    heights = given = np.asarray(heights, np.float64)
     radius = concave_radius(cyl, heights)
     if tool_radius_mm <= 0:
         return heights, float(radius.min())
@@ -85,9 +85,11 @@ def limit_concavity(cyl: surface.Cylinder, heights: np.ndarray, tool_radius_mm: 
         vertical[:, 1:] += heights[:, :-1]
         mean = (np.roll(heights, 1, 0) + np.roll(heights, -1, 0) + vertical) / neighbours
         heights = heights + rate * (mean - heights)
-        moved = maximum_filter((rate > 0).any(axis=1), size=2 * REMEASURE_NODES + 1, mode="wrap")
-        rows = np.flatnonzero(moved[node_u])
+        near_moved = maximum_filter((rate > 0).any(axis=1), size=2 * REMEASURE_NODES + 1, mode="wrap")
+        rows = np.flatnonzero(near_moved[node_u])
         radius[rows] = concave_radius(cyl, heights, rows)
+    if heights is given:  # no pass ran: the first measure was whole
+        return heights, float(radius.min())
     return heights, float(concave_radius(cyl, heights).min())
 
 
