@@ -42,7 +42,8 @@ help:
 	@echo "variables: TARGET_FRONT/LEFT/RIGHT/FLOOR (per-wall images), ALLOW_FAIL=1 (go on after a failed check),"
 	@echo "           BUILD=build (output folder), NAME (default: the image's name)"
 	@echo "without make: lampfab --help, lampfab <stage> --help"
-	@$(PY) -m lampfab.cli profiles 2>/dev/null || true
+	@$(PY) -m lampfab.cli profiles 2>/dev/null \
+	  || echo "profiles: profiles/*.toml and profiles/fab/*.toml (listed here once the first make has installed lampfab)"
 
 # -- setup: system libraries, virtual environment, Python packages ----------------------
 $(READY): pyproject.toml stages/00_setup.sh

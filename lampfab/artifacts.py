@@ -53,9 +53,37 @@ def remove_stale_temps(path: str | os.PathLike) -> None:
         stale.unlink(missing_ok=True)
 
 
-def write_json(path, data: dict) -> None:
+def remove(path) -> None:
+    """Delete ``path`` if it exists (an artifact an earlier run made that no longer holds)."""
+    Path(path).unlink(missing_ok=True)
+
+
+def write_bytes(path, data: bytes) -> None:
+    """``data`` as the whole of ``path`` (a file encoded by its format's module)."""
     with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=2, default=_jsonable) + "\n")
+        tmp.write_bytes(data)
+
+
+def write_text(path, text: str) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def holds_text(path, text: str) -> bool:
+    """Whether ``path`` exists and holds exactly ``text``."""
+    path = Path(path)
+    return path.is_file() and path.read_text(encoding="utf-8") == text
+
+
+def write_csv(path, rows: np.ndarray, header: list[str], formats: list[str]) -> None:
+    """(n, k) ``rows`` under a one-line ``header`` of k names, column j printed with
+    ``formats[j]`` (printf style)."""
+    with atomic_path(path) as tmp:
+        np.savetxt(tmp, rows, delimiter=",", header=",".join(header), comments="", fmt=formats)
+
+
+def write_json(path, data: dict) -> None:
+    write_text(path, json.dumps(data, indent=2, default=_jsonable) + "\n")
 
 
 def read_json(path) -> dict:

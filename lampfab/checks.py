@@ -55,19 +55,16 @@ from .surface import Cylinder
 # unsupported overhangs is >= 19 deg from level but only for overhangs <= 1 mm long
 # (as quoted by SLA service design guides); the lens's overhangs run for centimetres and
 # a support scar on an optical surface is a defect, so the common 45 deg rule is used.
-# Not in the facts note and not a profile field: see the report.
+# A rule of the upright print, not a profile field: the design obeys it too.
 OVERHANG_DEG = 45.0
 
 # Formlabs' recommended minimum drain hole diameter (SLA design guides quoting it); the
 # bore is the cavity's only opening, so resin drains through it.
 DRAIN_HOLE_MM = 3.5
 
-# Machining guides suggest inside radii >= 1.3 x the tool radius (facts note); below
-# that but above 1 x the tool still reaches, with a note.
+# Machining design guides ask for inside corner radii >= the tool radius and suggest 1.3
+# x; below that but above 1 x the tool still reaches, with a note.
 TOOL_MARGIN = 1.3
-
-# A roof designed at exactly OVERHANG_DEG must pass despite rounding in its normals.
-_ANGLE_TOL = 1e-6
 
 NAMES = ("min_wall", "max_slope", "tool_radius", "tool_axis", "overhang", "cavity_overhang",
          "build_volume", "mesh_valid", "drain", "cavity_access")
@@ -181,6 +178,7 @@ def _min_wall(f: Fields, fab: Fabrication) -> dict:
 
 
 def slope_cells(f: Fields, fab: Fabrication) -> np.ndarray:
+    """(mu, mv) bool: outer cells tilted past the profile's slope limit."""
     return f.slope > fab.max_slope_deg
 
 
@@ -198,6 +196,7 @@ def _max_slope(f: Fields, fab: Fabrication) -> dict:
 
 
 def tool_cells(f: Fields, fab: Fabrication) -> np.ndarray:
+    """(mu, mv) bool: outer cells hollower than the ball-end tool (none without a tool)."""
     if fab.tool_radius_mm <= 0:
         return np.zeros(f.wall.shape, bool)
     return f.concave_radius < fab.tool_radius_mm
@@ -224,10 +223,12 @@ def _tool_radius(f: Fields, fab: Fabrication) -> dict:
 
 
 def overhang_cells(f: Fields, fab: Fabrication) -> np.ndarray:
+    """(mu, mv) bool: outer cells leaning down past the print's overhang limit (none
+    when the process has no such limit)."""
     limit = overhang_limit_deg(fab)
     if limit is None:
         return np.zeros(f.wall.shape, bool)
-    return f.overhang > limit + _ANGLE_TOL
+    return f.overhang > limit + tolerances.ANGLE_TOL_DEG
 
 
 def overhang_limit_deg(fab: Fabrication) -> float | None:
@@ -247,7 +248,7 @@ def _overhang(f: Fields, fab: Fabrication) -> dict:
             f"surface leans past vertical (0 = vertical, 90 = a ceiling). "
             f"{f.area[cells].sum():.1f} mm^2 lean past {OVERHANG_DEG:.0f} deg and would need "
             f"supports on the optical surface (support scars).")
-    return _result("overhang", value, OVERHANG_DEG, "deg", value <= OVERHANG_DEG + _ANGLE_TOL,
+    return _result("overhang", value, OVERHANG_DEG, "deg", value <= OVERHANG_DEG + tolerances.ANGLE_TOL_DEG,
                    worst=_cell_place(f, int(i), int(j)), note=note)
 
 
@@ -272,17 +273,17 @@ def _cavity_overhang(iv, fi, fab: Fabrication) -> dict:
                        note=f"process {fab.process!r} is not built in layers")
     angle, area = cavity_overhang_faces(iv, fi)
     value = float(angle.max())
-    steep = angle >= value - 1.0
+    steep = angle >= value - 1.0  # within a degree: the whole of a flat ceiling, not its noisiest facet
     centroids = iv[fi].mean(axis=1)
     # The middle of the steepest region: for a flat ceiling its centre, farthest from the
     # walls that hold it up.
     mid = (centroids[steep] * area[steep, None]).sum(axis=0) / max(area[steep].sum(), 1e-300)
-    bad = angle > OVERHANG_DEG + _ANGLE_TOL
+    bad = angle > OVERHANG_DEG + tolerances.ANGLE_TOL_DEG
     note = (f"printed upright, the cavity's down-facing surfaces (its ceiling) are overhangs inside "
             f"the part, where supports could not be removed through the bore: {area[bad].sum():.1f} "
             f"mm^2 lean past {OVERHANG_DEG:.0f} deg from vertical. A self-supporting roof in the inner "
             f"layer (a cone or dome no flatter than {OVERHANG_DEG:.0f} deg from vertical) avoids it.")
-    return _result("cavity_overhang", value, OVERHANG_DEG, "deg", value <= OVERHANG_DEG + _ANGLE_TOL,
+    return _result("cavity_overhang", value, OVERHANG_DEG, "deg", value <= OVERHANG_DEG + tolerances.ANGLE_TOL_DEG,
                    worst=_place(mid), note=note)
 
 
@@ -369,8 +370,7 @@ def _drain(m: MeshReport, sv, sf, light, fab: Fabrication) -> dict:
 # ---------------------------------------------------------------- painting
 
 def paint_checks(path_png, cyl: Cylinder, heights: np.ndarray, inner_vertices: np.ndarray,
-                 inner_faces: np.ndarray, solid_vertices: np.ndarray, solid_faces: np.ndarray,
-                 fab: Fabrication, light_mm: np.ndarray, results: list[dict],
+                 inner_faces: np.ndarray, fab: Fabrication, results: list[dict],
                  fields: Fields | None = None, samples: tuple[int, int] = SAMPLES) -> None:
     """Write ``checks.png``: one panel per check, the unrolled outer surface (u across from
     0 to 360 deg, z up) coloured by wall thickness, failing cells red, the worst place

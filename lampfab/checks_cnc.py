@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from . import tolerances
 from .checks_geometry import Fields
 from .profile import Fabrication
 
@@ -117,7 +118,7 @@ def hidden_cavity(iv: np.ndarray, fi: np.ndarray, mount_radius_mm: float) -> tup
     area = 0.5 * np.linalg.norm(cross, axis=1)
     nz = cross[:, 2] / np.maximum(2 * area, 1e-300)
     up = nz < -_UP_FACING_NZ
-    floor = up & np.all(np.abs(tri[:, :, 2] - bore.z_floor_mm) <= 1e-3, axis=1)
+    floor = up & np.all(np.abs(tri[:, :, 2] - bore.z_floor_mm) <= tolerances.WELD_MM, axis=1)
     hidden_area = np.where(up, area, 0.0)
     if bore.counterbore:
         hidden_area[floor] = 0.0
@@ -129,6 +130,9 @@ def hidden_cavity(iv: np.ndarray, fi: np.ndarray, mount_radius_mm: float) -> tup
 
 
 def cavity_access(iv: np.ndarray, fi: np.ndarray, fab: Fabrication) -> dict:
+    """The ``cavity_access`` check: the cavity area (mm^2) that ``hidden_cavity`` finds
+    a tool through the bore cannot reach, for milled and ground lenses.  iv (n, 3) mm,
+    fi (m, 3) int: the inner layer wound outward."""
     from .checks import _place, _result
 
     if fab.process == "sla":

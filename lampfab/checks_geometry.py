@@ -54,7 +54,6 @@ class Fields:
     wall_top_xyz: np.ndarray
     wall_base: float
     wall_base_xyz: np.ndarray
-    bore_top_mm: float
 
 
 def compute_fields(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: np.ndarray,
@@ -90,9 +89,7 @@ def compute_fields(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: n
     overhang = np.degrees(np.arcsin(np.clip(-n_z, 0.0, 1.0)))
 
     concave_radius = concave_radius_of(r, r_u, r_z, r_uu, r_uz, r_zz)
-    # Tilt against the radial direction, as ``surface.slopes_deg`` computes it, from the
-    # derivatives already at hand.
-    slope = np.degrees(np.arctan(np.hypot(r_u / r, r_z)))
+    slope = np.degrees(np.arctan(surface.tilt_tangent(r, r_u, r_z)))
 
     iv = np.asarray(inner_vertices, np.float64)
     fi = np.asarray(inner_faces, np.int64)
@@ -124,8 +121,7 @@ def compute_fields(cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: n
 
     return Fields(u=u, z=z, xyz=xyz, normal=normal, area=area, wall=wall, slope=slope,
                   concave_radius=concave_radius, overhang=overhang, wall_top=wall_top,
-                  wall_top_xyz=top_xyz, wall_base=wall_base, wall_base_xyz=base_xyz,
-                  bore_top_mm=bore_top)
+                  wall_top_xyz=top_xyz, wall_base=wall_base, wall_base_xyz=base_xyz)
 
 
 def _settle_side(xyz: np.ndarray, dist: np.ndarray, side: np.ndarray, vertices: np.ndarray,

@@ -1,8 +1,8 @@
 """Topology of the final solid's triangle mesh for the fabrication checks (see checks.py).
 
 pymeshlab gives the authoritative counts (topological measures, self-intersecting
-faces: the facts note saw it find 180 self-intersecting faces where trimesh said
-watertight); numpy edge bookkeeping here gives the places to point at and splits the
+faces: on a lens of this project it found 180 self-intersecting faces where trimesh
+said watertight); numpy edge bookkeeping here gives the places to point at and splits the
 surface into shells, so that a sealed void (a closed shell facing inward) can be told
 from a second body (a closed shell facing outward).
 """
@@ -85,7 +85,7 @@ def inspect_mesh(vertices: np.ndarray, faces: np.ndarray, self_intersections: bo
         a, b = np.divmod(mis, len(v))
         places["misoriented_edges"] = _nearest_to_mean(0.5 * (v[a] + v[b]))
 
-    labels, n_shells = _shells(f, len(v), order, start, counts)
+    labels, n_shells = _shells(f, order, start, counts)
     tri = v[f] - v.mean(axis=0)                                   # centred: better rounding
     vol_f = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6.0
     shell_volume = np.bincount(labels, weights=vol_f, minlength=n_shells)
@@ -122,7 +122,7 @@ def _edges(f: np.ndarray, nv: int):
     return key, counts, order, start
 
 
-def _shells(f, nv, order, start, counts):
+def _shells(f, order, start, counts):
     """Connected components of faces across shared edges: ((m,) labels, count)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components

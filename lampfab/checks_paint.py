@@ -135,12 +135,13 @@ def cavity_cells(iv, fi, f: Fields, fab: Fabrication) -> np.ndarray:
     """(mu, mv) bool: cavity overhang faces splatted onto the (u, z) grid of the outer
     surface (the cavity is not on that surface; this marks the heights and directions
     where it overhangs)."""
-    from .checks import OVERHANG_DEG, _ANGLE_TOL, cavity_overhang_faces
+    from .checks import OVERHANG_DEG, cavity_overhang_faces
+    from .tolerances import ANGLE_TOL_DEG
 
     if fab.process != "sla":
         return np.zeros(f.wall.shape, bool)
     angle, _ = cavity_overhang_faces(iv, fi)
-    return _splat_faces(iv, fi[angle > OVERHANG_DEG + _ANGLE_TOL], f)
+    return _splat_faces(iv, fi[angle > OVERHANG_DEG + ANGLE_TOL_DEG], f)
 
 
 def access_cells(iv, fi, f: Fields, fab: Fabrication) -> np.ndarray:

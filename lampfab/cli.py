@@ -25,7 +25,7 @@ STAGE_HELP = {
                 "method with [optimize] method = \"seed\" (heightmap.npz)",
     "solid": "merge outer shell, inner layer and LED bore into one solid (solid.npz)",
     "check": "manufacturability against the fabrication profile (checks.json, checks.png)",
-    "export": "lens.stl, lens.step and design.json, each read back and checked",
+    "export": "lens.stl, lens.step, lens.glb and design.json, each read back and checked",
     "verify": "render the exported STL with its true facets; report.html",
 }
 WALLS = ("front", "left", "right", "floor")
@@ -85,15 +85,23 @@ def run_stage(name: str, args: argparse.Namespace) -> None:
     from . import pipeline
 
     build = pipeline.Build.open(args.out, args.profile, args.fab)
-    if name == "prepare":
-        pipeline.prepare(build, args.target, _per_wall(args), args.text, args.panorama)
-    elif name == "check":
-        pipeline.check(build, args.allow_fail)
-    elif name == "settings":
+    if name == "settings":
         images = {**_per_wall(args, with_default=True), "panorama": args.panorama}
         pipeline.snapshot(build, build.path("settings.json"), images, args.text)
     elif name == "summary":
         pipeline.summary(build)
+    else:
+        _pipeline_stage(build, name, vars(args).get("target"), args)  # only prepare takes --target
+
+
+def _pipeline_stage(build, name: str, image: str | None, args: argparse.Namespace) -> None:
+    """One of ``pipeline.STAGES`` on ``build``; ``image`` is the picture for every wall."""
+    from . import pipeline
+
+    if name == "prepare":
+        pipeline.prepare(build, image, _per_wall(args), args.text, args.panorama)
+    elif name == "check":
+        pipeline.check(build, args.allow_fail)
     else:
         getattr(pipeline, name)(build)
 
@@ -122,12 +130,7 @@ def _lamp(args: argparse.Namespace) -> None:
                       {**_per_wall(args), "all": args.image, "panorama": args.panorama}, args.text)
     for name in pipeline.STAGES:
         t0 = time.time()
-        if name == "prepare":
-            pipeline.prepare(build, args.image, _per_wall(args), args.text, args.panorama)
-        elif name == "check":
-            pipeline.check(build, args.allow_fail)
-        else:
-            getattr(pipeline, name)(build)
+        _pipeline_stage(build, name, args.image, args)
         print(f"== {name} done in {time.time() - t0:.1f} s", flush=True)
 
 

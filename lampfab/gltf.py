@@ -16,7 +16,7 @@ import struct
 
 import numpy as np
 
-from .artifacts import atomic_path
+from .artifacts import write_bytes
 
 _FLOAT, _UINT = 5126, 5125            # glTF component types
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
@@ -65,9 +65,6 @@ def write_glb(path, vertices_mm: np.ndarray, faces: np.ndarray, ior: float, name
     text = json.dumps(doc, separators=(",", ":")).encode()
     text += b" " * ((-len(text)) % 4)
     total = 12 + 8 + len(text) + 8 + len(binary)
-    with atomic_path(path, suffix=".glb") as tmp:
-        with open(tmp, "wb") as fh:
-            fh.write(struct.pack("<4sII", b"glTF", 2, total))
-            fh.write(struct.pack("<I4s", len(text), b"JSON") + text)
-            fh.write(struct.pack("<I4s", len(binary), b"BIN\0") + binary)
+    write_bytes(path, struct.pack("<4sII", b"glTF", 2, total) + struct.pack("<I4s", len(text), b"JSON") + text
+                + struct.pack("<I4s", len(binary), b"BIN\0") + binary)
     return total

@@ -91,18 +91,6 @@ def ssim_data_range(normalized_target: np.ndarray) -> float:
     return data_range if data_range > 0.0 else 1.0
 
 
-def share(flux_on_wall, flux_emitted) -> float:
-    """Fraction of the emitted flux that lands on the wall.
-
-    ``flux_on_wall`` may be a number or an image of per-pixel flux (it is summed).
-    """
-    on_wall = float(np.sum(flux_on_wall))
-    emitted = float(flux_emitted)
-    if not emitted > 0.0:
-        raise ValueError(f"emitted flux must be positive, got {emitted}")
-    return on_wall / emitted
-
-
 def compare(render, target) -> dict:
     """{"pearson": r, "ssim": s} of a render against its target."""
     return {"pearson": pearson(render, target), "ssim": ssim(render, target)}

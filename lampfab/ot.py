@@ -42,18 +42,17 @@ def _log(mass: np.ndarray) -> np.ndarray:
 
 
 def barycentric_map(source: np.ndarray, target: np.ndarray, x1: np.ndarray, x2: np.ndarray,
-                    y1: np.ndarray, y2: np.ndarray, eps_final: float, iterations: int = 40,
-                    warm: tuple[np.ndarray, np.ndarray] | None = None
-                    ) -> tuple[np.ndarray, np.ndarray, float, tuple[np.ndarray, np.ndarray]]:
+                    y1: np.ndarray, y2: np.ndarray, eps_final: float, iterations: int = 40
+                    ) -> tuple[np.ndarray, np.ndarray, float]:
     """Where each source cell's light should go.
 
     source (n1, n2) and target (m1, m2) are non-negative masses (normalized here);
     x1 (n1,), x2 (n2,), y1 (m1,), y2 (m2,) are the grids' coordinates.  Solves the
     entropic OT problem with blur ``eps_final`` (annealed from a large blur for speed)
     and returns the barycentric projection of the plan: ((n1, n2) y1-coordinate,
-    (n1, n2) y2-coordinate, marginal error of the target side, potentials (f, g)).
+    (n1, n2) y2-coordinate, marginal error of the target side; see ``maps_of``).
     Cells without mass also get a map (from the target potential), so a surface built
-    from it is smooth.  ``warm`` potentials of a similar problem skip the annealing.
+    from it is smooth.
     """
     a = source / source.sum()
     b = target / target.sum()
@@ -63,9 +62,6 @@ def barycentric_map(source: np.ndarray, target: np.ndarray, x1: np.ndarray, x2: 
     f = np.zeros_like(a)
     g = np.zeros_like(b)
     eps = 0.1  # the grids span about 1: a blur of 0.1 is already nearly uniform
-    if warm is not None and warm[1].shape == b.shape:
-        g = warm[1]
-        eps = eps_final
     while True:
         steps = iterations if eps <= eps_final else 8
         for _ in range(steps):
@@ -74,13 +70,23 @@ def barycentric_map(source: np.ndarray, target: np.ndarray, x1: np.ndarray, x2: 
         if eps <= eps_final:
             break
         eps = max(eps * 0.5, eps_final)
-    # The maps below send each source cell's whole mass by its row of the plan, normalized
-    # with g alone: how far that plan's target marginal is from the target (L1, 0 when
-    # converged) is how much light they misplace.
+    return maps_of(a, b, c1, c2, y1, y2, g, eps)
+
+
+def maps_of(a: np.ndarray, b: np.ndarray, c1: np.ndarray, c2: np.ndarray, y1: np.ndarray,
+            y2: np.ndarray, g: np.ndarray, eps: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """The barycentric maps ((n1, n2) each) of the plan that the target potential g
+    (m1, m2) gives with blur ``eps``, and that plan's marginal error.
+
+    a (n1, n2) and b (m1, m2) are the normalized masses; c1 (n1, m1) and c2 (n2, m2) the
+    squared distances along each axis.  The maps send each source cell's whole mass by its
+    row of the plan, normalized with g alone: how far that plan's target marginal is from
+    the target (L1, 0 when converged) is how much light they misplace.
+    """
     base = _apply(g / eps, c1, c2, eps)
     with np.errstate(divide="ignore"):
-        sent = np.exp(g / eps + _apply(log_a - base, c1.T, c2.T, eps))
+        sent = np.exp(g / eps + _apply(_log(a) - base, c1.T, c2.T, eps))
     marginal_error = float(np.abs(sent - b).sum())
     y1_map = np.exp(_apply(g / eps + np.log(y1)[:, None], c1, c2, eps) - base)
     y2_map = np.exp(_apply(g / eps + np.log(y2)[None, :], c1, c2, eps) - base)
-    return y1_map, y2_map, marginal_error, (f, g)
+    return y1_map, y2_map, marginal_error

@@ -109,26 +109,17 @@ def _finishing(build) -> dict:
     return {}
 
 
-def _report_pictures(build) -> dict:
-    """The panel in its room, the panel on its own, and its relief as a colour map."""
-    from . import beauty, room, stl
-
-    v = build.design.verify
-    vertices, faces = stl.read_stl(build.path("lens.stl"))
-    design = artifacts.read_json(build.path("design.json"))
-    walls = [room.Wall.from_json(w) for w in design["walls"]]
-    flux = [artifacts.read_npz(build.path("verify", f"{w.name}.npz"))["led"] for w in walls]
-    paths = {"room": build.path("report", "room.png"), "lens": build.path("report", "lens.png"),
-             "heightmap": build.path("report", "heightmap.png")}
-    # The collimated lamp stands for the beam: a bright disk behind the panel.
+def _report_light(build, design: dict) -> tuple[np.ndarray, float]:
+    """The collimated lamp stands for the beam: a bright disk behind the panel."""
     s = shape(build)
-    source = np.array([0.0, -3 * s.thickness_mm - s.width_mm, s.height_mm / 2])
-    artifacts.write_png(paths["room"], beauty.room_scene(
-        vertices, faces, build.fab.ior, source, s.width_mm / 4, walls, flux, v.scene_px, v.scene_spp,
-        build.design.optimize.seed), normalize=False)
-    artifacts.write_png(paths["lens"], beauty.bumpy_lens(vertices, faces, v.scene_px, 4), normalize=False)
-    relief_map(s, artifacts.read_npz(build.path("heightmap.npz"))["heights"], paths["heightmap"])
-    return paths
+    return np.array([0.0, -3 * s.thickness_mm - s.width_mm, s.height_mm / 2]), s.width_mm / 4
+
+
+def _heightmap_picture(build, wall_names: list[str], path) -> None:
+    """The relief as a colour map."""
+    from .pipeline import load_heights
+
+    relief_map(shape(build), load_heights(build), path)
 
 
 def relief_map(s: panel.PanelShape, heights: np.ndarray, out_path, width_px: int = 480) -> None:

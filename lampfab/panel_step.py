@@ -11,13 +11,13 @@ boundary curve; the six faces are sewn into one closed shell.  Units: mm.
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
 from . import panel
 from .errors import GeometryError
-from .step import OCC_TOLERANCE_MM, shape_figures, write_shape
+from .step import check_and_write
+from .tolerances import OCC_COINCIDENT_MM, OCC_TOLERANCE_MM
 
 
 def bspline(shape: panel.PanelShape, heights: np.ndarray):
@@ -107,15 +107,21 @@ def build_solid(shape: panel.PanelShape, heights: np.ndarray):
         faces.append(face.Face())
     back = BRepBuilderAPI_MakePolygon(gp_Pnt(x0, 0, z0), gp_Pnt(x1, 0, z0), gp_Pnt(x1, 0, z1), gp_Pnt(x0, 0, z1),
                                       True)
-    faces.append(BRepBuilderAPI_MakeFace(back.Wire(), True).Face())
-    sewing = BRepBuilderAPI_Sewing(1e-6)
+    back_face = BRepBuilderAPI_MakeFace(back.Wire(), True)
+    if not back_face.IsDone():
+        raise GeometryError(f"STEP: the panel's back face failed ({back_face.Error()})")
+    faces.append(back_face.Face())
+    sewing = BRepBuilderAPI_Sewing(OCC_COINCIDENT_MM)
     for face in faces:
         sewing.Add(face)
     sewing.Perform()
     explorer = TopExp_Explorer(sewing.SewedShape(), TopAbs_SHELL)
     if not explorer.More():
         raise GeometryError("STEP: sewing the panel's faces gave no shell")
-    solid = BRepBuilderAPI_MakeSolid(TopoDS.Shell_s(explorer.Current())).Solid()
+    made = BRepBuilderAPI_MakeSolid(TopoDS.Shell_s(explorer.Current()))
+    if not made.IsDone():
+        raise GeometryError("STEP: the panel's sewn shell did not make a solid")
+    solid = made.Solid()
     BRepLib.OrientClosedSolid_s(solid)
     build_s = time.perf_counter() - t0
     return solid, {"build_s": build_s, "poles_u": int(poles[0]), "poles_v": int(poles[1]), "faces": len(faces),
@@ -127,14 +133,6 @@ def write_step(path, shape: panel.PanelShape, heights: np.ndarray, expected_volu
 
     Raises GeometryError if the solid is not one valid closed solid of the expected
     volume (within ``tolerances.VOLUME_REL``)."""
-    from .tolerances import VOLUME_REL
-
     solid, info = build_solid(shape, heights)
-    figs = shape_figures(solid)
-    rel = abs(figs["volume_mm3"] - expected_volume_mm3) / expected_volume_mm3
-    if not (figs["valid"] and figs["closed"] and figs["n_solids"] == 1 and rel <= VOLUME_REL):
-        raise GeometryError(f"STEP: the panel solid fails its checks: {figs}, volume {rel:.2%} off the STL's")
-    info.update(figs)
-    info["write_s"] = write_shape(path, solid)
-    info["file_bytes"] = Path(path).stat().st_size
+    info.update(check_and_write(path, solid, "the panel solid", expected_volume_mm3))
     return info

@@ -73,7 +73,7 @@ def target_map(shape: panel.PanelShape, wall: Wall, target: np.ndarray, grid: tu
     off_z = min(z.min(), tz.min()) / scale - 1.0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # log(0) for black cells is meant
-        mx, mz, err, _ = ot.barycentric_map(beam_mass(sx, sz), target.T, x / scale - off_x, z / scale - off_z,
+        mx, mz, err = ot.barycentric_map(beam_mass(sx, sz), target.T, x / scale - off_x, z / scale - off_z,
                                             tx / scale - off_x, tz / scale - off_z,
                                             (blur_px / cols) ** 2)
     if (sx, sz) != (nx, nz):

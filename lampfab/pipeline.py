@@ -148,12 +148,10 @@ def snapshot(build: Build, path, images: dict[str, str], text: str = "") -> bool
     if inner_mesh and Path(inner_mesh).is_file():
         hashes["inner_layer"] = {"path": inner_mesh, "sha256": artifacts.file_sha256(inner_mesh)}
     body = json.dumps({**build.settings(), "images": hashes, "text": text}, indent=2, sort_keys=True) + "\n"
-    path = Path(path)
-    if path.exists() and path.read_text() == body:
+    if artifacts.holds_text(path, body):
         return False
     _check_inputs(build, images, text)
-    with artifacts.atomic_path(path) as tmp:
-        tmp.write_text(body)
+    artifacts.write_text(path, body)
     return True
 
 
@@ -366,7 +364,7 @@ def init(build: Build) -> dict:
     return report.data
 
 
-# -- 3b. optimize (the source's method) ---------------------------------------------------
+# -- 3b. optimize (the profile's method: splat, or the source's seed) ----------------------
 @_per_kind
 def optimize(build: Build) -> dict:
     """Refine the initial lens by gradient descent through a differentiable renderer
@@ -384,7 +382,7 @@ def optimize(build: Build) -> dict:
     if not np.all(np.isfinite(init_heights)):
         raise LampfabError(f"{build.path('init.npz')}: {int(np.sum(~np.isfinite(init_heights)))} heights are NaN or "
                            f"Inf; re-run init (make init), and report it if it happens again")
-    seed_opt = build.optimizer(opt, build.inner(), build.targets(opt.sensor_px))
+    optimizer = build.optimizer(opt, build.inner(), build.targets(opt.sensor_px))
     checkpoint = build.path("checkpoint.npz")
     for written in (checkpoint, build.path("heightmap.npz")):
         artifacts.remove_stale_temps(written)
@@ -401,7 +399,7 @@ def optimize(build: Build) -> dict:
         artifacts.write_npz(checkpoint, settings_hash=_settings_hash(build, init_heights), **s.to_arrays())
 
     def preview(s):
-        for wall, img in zip(build.walls, seed_opt.render_all(s.heights, seed=opt.seed + 1)):
+        for wall, img in zip(build.walls, optimizer.render_all(s.heights, seed=opt.seed + 1)):
             artifacts.write_png(build.path("previews", f"step{s.step:06d}_{wall.name}.png"), img)
 
     bar = tqdm(total=opt.iterations, initial=state.step, desc="optimize", unit="step", disable=opt.iterations == 0,
@@ -416,7 +414,7 @@ def optimize(build: Build) -> dict:
     if state.step == 0 and opt.iterations:
         preview(state)
     try:
-        state = seed_opt.run(state, save, preview, progress)
+        state = optimizer.run(state, save, preview, progress)
     except opt_mod.Interrupted as exc:
         bar.close()
         raise LampfabError(f"optimize interrupted at step {exc.step}; checkpoint saved to {checkpoint}, "
@@ -427,11 +425,10 @@ def optimize(build: Build) -> dict:
                         height_mm=d.lens.height_mm)
     # The optimizer's own picture of its result: verify compares the exported lens with it.
     artifacts.write_npz(build.path("optimize_render.npz"), **{
-        w.name: img for w, img in zip(build.walls, seed_opt.render_all(heights, seed=opt.seed + 1))})
+        w.name: img for w, img in zip(build.walls, optimizer.render_all(heights, seed=opt.seed + 1))})
     log = np.asarray(state.log).reshape(-1, 5)
-    with artifacts.atomic_path(build.path("loss.csv")) as tmp:
-        np.savetxt(tmp, log, delimiter=",", header="step,level,view,loss,seconds", comments="",
-                   fmt=["%d", "%d", "%d", "%.6g", "%.3f"])
+    artifacts.write_csv(build.path("loss.csv"), log, ["step", "level", "view", "loss", "seconds"],
+                        ["%d", "%d", "%d", "%.6g", "%.3f"])
     from . import pictures
 
     frames = pictures.optimization_gif(build.path("previews"), [w.name for w in build.walls],
@@ -443,7 +440,7 @@ def optimize(build: Build) -> dict:
                   median_step_s=float(np.median(log[:, 4])) if len(log) else None,
                   offset_min_mm=float(heights.min()), offset_max_mm=float(heights.max()))
     report.write(build.path("optimize.json"))
-    checkpoint.unlink(missing_ok=True)
+    artifacts.remove(checkpoint)
     return report.data
 
 
@@ -458,6 +455,7 @@ def _settings_hash(build: Build, init_heights: np.ndarray) -> str:
 
 
 def load_heights(build: Build) -> np.ndarray:
+    """The optimized outer layer: (nu, nv) float64 mm radial offsets (heightmap.npz)."""
     return artifacts.read_npz(build.path("heightmap.npz"))["heights"]
 
 
@@ -488,7 +486,7 @@ def check(build: Build, allow_fail: bool) -> dict:
                  f"limit {_fmt(r['limit'])})")
     if failed and not allow_fail:
         # A checks.json of an earlier run with other settings must not pass for this one.
-        build.path("checks.json").unlink(missing_ok=True)
+        artifacts.remove(build.path("checks.json"))
         report.write(build.path("checks.failed.json"))
         worst = failed[0]
         place = worst.get("worst") or {}
@@ -496,7 +494,7 @@ def check(build: Build, allow_fail: bool) -> dict:
         raise CheckFailed(f"check {worst['name']} failed: {_fmt(worst['value'])} {worst['unit']} against "
                           f"limit {_fmt(worst['limit'])}{where} ({len(failed)} failed; see "
                           f"{build.path('checks.failed.json')} and checks.png; ALLOW_FAIL=1 to go on)", failed)
-    build.path("checks.failed.json").unlink(missing_ok=True)
+    artifacts.remove(build.path("checks.failed.json"))
     report.write(build.path("checks.json"))
     return report.data
 
@@ -509,8 +507,7 @@ def _run_checks(build: Build, vertices: np.ndarray, faces: np.ndarray) -> list[d
     iv, if_ = build.inner()
     heights = load_heights(build)
     results = checks.run_checks(build.cylinder, heights, iv, if_, vertices, faces, build.fab, build.light)
-    checks.paint_checks(build.path("checks.png"), build.cylinder, heights, iv, if_, vertices, faces,
-                        build.fab, build.light, results)
+    checks.paint_checks(build.path("checks.png"), build.cylinder, heights, iv, if_, build.fab, results)
     return results
 
 
@@ -638,11 +635,10 @@ def _finishing(build: Build) -> dict:
     return {"tolerance": study, "guidance": guidance.advice(fab, [w.name for w in build.walls], build.light, study)}
 
 
-@_per_kind
 def _report_pictures(build: Build) -> dict:
     """The report's own pictures in ``report/``: the glass lamp in its room, the
     bumpy lens, the unrolled heightmap.  Returns their paths."""
-    from . import beauty, pictures, stl
+    from . import beauty, stl
 
     v = build.design.verify
     design = artifacts.read_json(build.path("design.json"))
@@ -651,12 +647,27 @@ def _report_pictures(build: Build) -> dict:
     flux = [artifacts.read_npz(build.path("verify", f"{w.name}.npz"))["led"] for w in walls]
     paths = {"room": build.path("report", "room.png"), "lens": build.path("report", "lens.png"),
              "heightmap": build.path("report", "heightmap.png")}
+    light_mm, light_radius_mm = _report_light(build, design)
     artifacts.write_png(paths["room"], beauty.room_scene(
-        vertices, faces, build.fab.ior, np.asarray(design["light"]["position"], float), build.fab.led_radius_mm,
-        walls, flux, v.scene_px, v.scene_spp, build.design.optimize.seed), normalize=False)
+        vertices, faces, build.fab.ior, light_mm, light_radius_mm, walls, flux, v.scene_px, v.scene_spp,
+        build.design.optimize.seed), normalize=False)
     artifacts.write_png(paths["lens"], beauty.bumpy_lens(vertices, faces, v.scene_px, 4), normalize=False)
-    pictures.heightmap_map(build.cylinder, load_heights(build), [w.name for w in walls], paths["heightmap"])
+    _heightmap_picture(build, [w.name for w in walls], paths["heightmap"])
     return paths
+
+
+@_per_kind
+def _report_light(build: Build, design: dict) -> tuple[np.ndarray, float]:
+    """The light of the report's room render: (3,) mm position and its radius in mm."""
+    return np.asarray(design["light"]["position"], float), build.fab.led_radius_mm
+
+
+@_per_kind
+def _heightmap_picture(build: Build, wall_names: list[str], path) -> None:
+    """The unrolled heightmap as a colour map, each sector labelled with its wall."""
+    from . import pictures
+
+    pictures.heightmap_map(build.cylinder, load_heights(build), wall_names, path)
 
 
 def _write_report(build: Build, figures: dict, pics: dict, report_mod) -> None:

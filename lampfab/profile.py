@@ -108,7 +108,7 @@ class Verify:
     image_px: int = _spec(64, 8, 4096, doc="verify image width in pixels")
     photons: int = _spec(16_000_000, 10_000, 2_000_000_000, doc="photons per verify render (and the plan's)")
     study_photons: int = _spec(1_000_000, 10_000, 2_000_000_000,
-                               doc="photons per render of the tolerance study (nine renders; the same photons "
+                               doc="photons per render of the tolerance study (eight or nine renders; the same photons "
                                    "in each, so their differences are not noise)")
     max_bounces: int = _spec(8, 2, 64, doc="interface crossings followed per photon")
     scene_px: int = _spec(320, 16, 4096, doc="width of the report's picture of the glass lamp in its room")

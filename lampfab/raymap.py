@@ -27,6 +27,7 @@ from scipy.sparse.linalg import spsolve
 
 from . import surface
 from .room import Wall
+from .tolerances import RAY_EPSILON_MM
 
 # Radial step of the central differences (mm): float64 landing positions keep ~1e-9 mm,
 # so the derivative is good to ~1e-6 relative; curvature errors are ~(1e-3)^2.
@@ -108,7 +109,8 @@ def refract(direction: np.ndarray, normal: np.ndarray, eta: float) -> tuple[np.n
 def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, light_mm: np.ndarray,
                        ior: float, n_azimuth: int, n_elevation: int, seed: int) -> Photons:
     """One photon per cell of an (azimuth, sin elevation) grid, jittered inside its cell,
-    refracted into the glass at the inner layer (faces wound outward, away from the light)."""
+    refracted into the glass at the inner layer: inner_vertices (n, 3) mm, inner_faces
+    (m, 3) int wound outward (away from the light), light_mm (3,) the LED's centre."""
     from .trace import first_hits
 
     rng = np.random.default_rng(seed)
@@ -121,7 +123,7 @@ def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, ligh
     emitted = np.stack([cos_el * np.cos(phi), cos_el * np.sin(phi), sin_el], axis=1)
     start = np.broadcast_to(np.asarray(light_mm, np.float64), emitted.shape)
     valid, prim, t = first_hits(inner_vertices, inner_faces, start, emitted)
-    if valid.mean() < 0.99:
+    if valid.mean() < 0.99:  # more than the few that slip between facets (below)
         raise ValueError("photons leave the inner layer without crossing it: the light is not inside it")
     # A few rays slip between two facets (float32 intersection is not watertight): dropped.
     emitted, start, prim, t = emitted[valid], start[valid], prim[valid], t[valid]
@@ -133,7 +135,7 @@ def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, ligh
     along = np.where(facing[:, None], normal, -normal)  # the facet normal on the glass side
     inside, cos_i, _ = refract(emitted, along, ior)
     transmitted = fresnel_transmission(cos_i, ior)
-    origin = start + t[:, None] * emitted + 1e-4 * inside
+    origin = start + t[:, None] * emitted + RAY_EPSILON_MM * inside
     return Photons(origin, inside, emitted, transmitted / len(valid), np.stack([a, s], axis=1),
                    n_azimuth, n_elevation)
 
@@ -253,7 +255,8 @@ class RayMap:
         return self._grids[shape]
 
     def trace(self, heights: np.ndarray) -> Landing:
-        """Trace every photon meant for a wall through the tessellated surface."""
+        """Trace every photon meant for a wall through the surface of (nu, nv) mm
+        ``heights``, tessellated as the STL will be."""
         from .trace import first_hits
 
         mu, mv = surface.fine_shape(*heights.shape, self.tessellation)
@@ -298,7 +301,7 @@ class RayMap:
         offset = grid.value @ c
         r = self.cyl.radius_mm + offset
         r_u, r_z = grid.d_u @ c, grid.d_z @ c
-        tan_tilt = np.hypot(r_u / r, r_z)
+        tan_tilt = surface.tilt_tangent(r, r_u, r_z)
         slope_excess = np.maximum(tan_tilt - self.tan_limit, 0.0)
         offset_excess = np.sign(offset) * np.maximum(np.abs(offset) - self.max_offset, 0.0)
         smooth = grid.smooth @ c

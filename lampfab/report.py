@@ -14,7 +14,7 @@ import math
 import os
 from pathlib import Path
 
-from .artifacts import atomic_path
+from .artifacts import write_text
 from .errors import LampfabError
 
 _MIME = ((b"\x89PNG\r\n\x1a\n", "image/png"), (b"\xff\xd8\xff", "image/jpeg"), (b"GIF8", "image/gif"))
@@ -106,8 +106,7 @@ def write_report(path: str | os.PathLike, title: str, walls: list[dict], figures
     parts.append(f"<footer>Made by lampfab {_e(__version__)}.</footer>")
     parts.append("</main></body></html>\n")
 
-    with atomic_path(path, suffix=".html") as tmp:
-        tmp.write_text("\n".join(parts), encoding="utf-8")
+    write_text(path, "\n".join(parts))
 
 
 def _section(title: str, snippet: str) -> str:

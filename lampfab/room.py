@@ -44,6 +44,7 @@ class Wall:
 
     @property
     def centre(self) -> np.ndarray:
+        """(3,) float64 mm: the middle of the image."""
         return self.origin + 0.5 * (self.right + self.down)
 
     def sector_deg(self) -> tuple[float, float]:

@@ -32,7 +32,7 @@ from .errors import GeometryError, LampfabError
 # The floor ring the bore must leave between its wall and the cavity's side walls.  A
 # zero ring would put the bore wall on the cavity wall (coincident, sliver-prone
 # booleans) and cut the optical side wall; the minimum gap the optimizer keeps between
-# the layers (0.5 mm) is also plenty for a ledge the LED mount can sit under.
+# the layers is also plenty for a ledge the LED mount can sit under.
 BORE_LEDGE_MM = tolerances.MIN_GAP_MM
 
 # How far the bore starts below the base (any negative z works; 1 mm keeps its
@@ -42,10 +42,6 @@ BORE_BELOW_MM = 1.0
 # How far the bore mesh reaches above the cavity floor into the cavity (capped at half
 # the cavity's height), so its top cap lies inside the void and never on the floor.
 BORE_OVERLAP_MM = 1.0
-
-# Relative tolerance of the volume bookkeeping in the checks: manifold3d's booleans are
-# exact up to float64 rounding of the new vertices (~1e-12 relative here).
-VOLUME_CHECK_REL = 1e-7
 
 
 @dataclass(frozen=True)
@@ -85,8 +81,6 @@ class Solid:
     faces: np.ndarray
     volume_mm3: float
     genus: int
-    outer_volume_mm3: float
-    cavity_volume_mm3: float
     bore: Bore
 
 
@@ -260,25 +254,12 @@ def _cavity(inner_vertices, inner_faces, bore: Bore):
     if len(cavity.decompose()) != 1:
         raise GeometryError("cavity (inner layer + bore) is not one connected body")
     expected = v_inner + bore.polygon_area_mm2 * (bore.z_floor_mm - bore.z_bottom_mm)
-    if abs(cavity.volume() - expected) > VOLUME_CHECK_REL * expected:
+    if abs(cavity.volume() - expected) > tolerances.MANIFOLD_VOLUME_REL * expected:
         raise LampfabError(
             f"the bore (radius {bore.radius_mm:g} mm) reaches glass beside the cavity above its floor at "
             f"z = {bore.z_floor_mm:.2f} mm: cavity volume {cavity.volume():.3f} mm^3, expected {expected:.3f} "
             f"(inner {v_inner:.3f} + bore below the floor); lower mount_radius_mm")
     return cavity, inner
-
-
-def cavity_mesh(inner_vertices: np.ndarray, inner_faces: np.ndarray, mount_radius_mm: float,
-                bore_sections: int = 128) -> tuple[np.ndarray, np.ndarray, Bore]:
-    """The cavity (inner layer ∪ bore) as a closed mesh.
-
-    Returns ((n, 3) float64 mm vertices, (m, 3) int64 faces with normals pointing out of
-    the void, Bore).  The bore part below z = 0 lies outside the lens.
-    """
-    bore = plan_bore(inner_vertices, inner_faces, mount_radius_mm, bore_sections)
-    cavity, _ = _cavity(inner_vertices, inner_faces, bore)
-    v, f = _arrays(cavity)
-    return v, f, bore
 
 
 def build_solid(cyl: surface.Cylinder, heights: np.ndarray, tessellation: int,
@@ -316,7 +297,7 @@ def build_solid(cyl: surface.Cylinder, heights: np.ndarray, tessellation: int,
     v_cavity_in = cavity.volume() - bore.polygon_area_mm2 * (0.0 - bore.z_bottom_mm)
     expected = v_outer - v_cavity_in
     volume = solid.volume()
-    if not volume > 0 or abs(volume - expected) > VOLUME_CHECK_REL * v_outer:
+    if not volume > 0 or abs(volume - expected) > tolerances.MANIFOLD_VOLUME_REL * v_outer:
         raise LampfabError(
             f"lens solid has volume {volume:.3f} mm^3 but outer {v_outer:.3f} - cavity {v_cavity_in:.3f} = "
             f"{expected:.3f}: the inner layer or the bore crosses the outer surface")
@@ -335,7 +316,6 @@ def build_solid(cyl: surface.Cylinder, heights: np.ndarray, tessellation: int,
         raise GeometryError(f"lens solid has genus {genus} (Euler {topo['euler']}); expected the inner layer's "
                             f"genus {inner.genus()}")
     v_arrays = mesh_volume(verts, faces)
-    if abs(v_arrays - volume) > VOLUME_CHECK_REL * v_outer:
+    if abs(v_arrays - volume) > tolerances.MANIFOLD_VOLUME_REL * v_outer:
         raise GeometryError(f"lens solid volume from its mesh {v_arrays:.3f} mm^3 != manifold3d's {volume:.3f}")
-    return Solid(vertices=verts, faces=faces, volume_mm3=float(volume), genus=int(genus),
-                 outer_volume_mm3=float(v_outer), cavity_volume_mm3=float(v_cavity_in), bore=bore)
+    return Solid(vertices=verts, faces=faces, volume_mm3=float(volume), genus=int(genus), bore=bore)

@@ -32,20 +32,7 @@ from . import surface
 from .artifacts import atomic_path
 from .errors import GeometryError, LampfabError
 from .solid import BORE_LEDGE_MM, plan_bore
-
-# Tolerance of the face/edge geometry handed to OCCT (its Precision::Confusion).
-OCC_TOLERANCE_MM = 1e-7
-
-# Relative accuracy asked of OCCT's adaptive volume integration.  Its default (fixed
-# Gauss points) was 1.3 % off on a rough 256 x 64 lens; 1e-5 lands within ~1e-5 of the
-# converged value in 0.2 s, 1e-6 takes 7x longer for a digit the 0.5 % check never needs.
-VOLUME_EPS = 1e-5
-
-# A facet's vertices must lie this close to its plane to become one planar face (a
-# tenth of the edge tolerance, so its straight edges lie on the plane); otherwise its
-# triangles become faces of their own.  Axis-aligned faces are exact; tilted quads from
-# a float32 file usually fall back to their two triangles.
-PLANAR_MM = 0.1 * OCC_TOLERANCE_MM
+from .tolerances import OCC_COINCIDENT_MM, OCC_TOLERANCE_MM, OCC_VOLUME_REL, PLANAR_MM, VOLUME_REL
 
 
 # ---------------------------------------------------------------- the B-spline fit
@@ -187,7 +174,7 @@ def _boundary_edge(face, z_mm: float):
         if BRep_Tool.IsClosed_s(e, face):
             continue
         c = BRepAdaptor_Curve(e)
-        if abs(c.Value(0.5 * (c.FirstParameter() + c.LastParameter())).Z() - z_mm) < 1e-6:
+        if abs(c.Value(0.5 * (c.FirstParameter() + c.LastParameter())).Z() - z_mm) < OCC_COINCIDENT_MM:
             return e
     raise GeometryError(f"STEP: no boundary edge at z = {z_mm} mm on a periodic face")
 
@@ -418,7 +405,7 @@ def shape_figures(shape) -> dict:
     n_faces, _ = count(TopAbs_FACE)
     _, shells = count(TopAbs_SHELL)
     props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(shape, props, VOLUME_EPS)
+    BRepGProp.VolumeProperties_s(shape, props, OCC_VOLUME_REL)
     return {"n_solids": n_solids, "valid": bool(BRepCheck_Analyzer(shape).IsValid()),
             "closed": bool(shells) and all(BRep_Tool.IsClosed_s(s) for s in shells),
             "volume_mm3": float(props.Mass()), "faces": n_faces}
@@ -459,25 +446,33 @@ def write_step(path, cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
     and its deviation, every grid tried), build_s, check_s, write_s).  Raises GeometryError if the solid is invalid, open, or has a
     non-positive or unexpected volume.
     """
-    from . import tolerances
-
     solid, info = build_step_solid(cyl, inner_vertices, inner_faces, mount_radius_mm,
                                    fit_samples(cyl, heights, samples_u, samples_v))
+    info.update(check_and_write(path, solid, "the lens solid", expected_volume_mm3))
+    info["deviation_mm"] = info["deviation"]["radial_mm"]
+    return info
+
+
+def check_and_write(path, solid, what: str, expected_volume_mm3: float | None) -> dict:
+    """Write ``solid`` as STEP once it is one valid closed solid of positive volume, within
+    ``tolerances.VOLUME_REL`` of ``expected_volume_mm3`` when that is given.
+
+    Returns ``shape_figures`` plus check_s, write_s and file_bytes.  Raises GeometryError
+    naming ``what`` and the failing figures.
+    """
     t0 = time.perf_counter()
     figs = shape_figures(solid)
-    info["check_s"] = time.perf_counter() - t0
+    figs["check_s"] = time.perf_counter() - t0
     if not (figs["valid"] and figs["closed"] and figs["n_solids"] == 1 and figs["volume_mm3"] > 0):
-        raise GeometryError(f"STEP: the assembled solid fails its checks: {figs}")
+        raise GeometryError(f"STEP: {what} fails its checks: {figs}")
     if expected_volume_mm3 is not None:
         rel = abs(figs["volume_mm3"] - expected_volume_mm3) / expected_volume_mm3
-        if rel > tolerances.VOLUME_REL:
-            raise GeometryError(f"STEP: solid volume {figs['volume_mm3']:.3f} mm^3 differs from the expected "
-                                f"{expected_volume_mm3:.3f} by {rel:.2%} (limit {tolerances.VOLUME_REL:.1%})")
-    info["write_s"] = write_shape(path, solid)
-    info.update(figs)
-    info["deviation_mm"] = info["deviation"]["radial_mm"]
-    info["file_bytes"] = Path(path).stat().st_size
-    return info
+        if rel > VOLUME_REL:
+            raise GeometryError(f"STEP: {what}'s volume {figs['volume_mm3']:.3f} mm^3 differs from the expected "
+                                f"{expected_volume_mm3:.3f} by {rel:.2%} (limit {VOLUME_REL:.1%})")
+    figs["write_s"] = write_shape(path, solid)
+    figs["file_bytes"] = Path(path).stat().st_size
+    return figs
 
 
 def fit_samples(cyl: surface.Cylinder, heights: np.ndarray, max_u: int, max_v: int) -> dict:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .artifacts import atomic_path
+from .artifacts import write_bytes
 from .errors import LampfabError
 
 
@@ -25,8 +25,7 @@ def write_stl(path, vertices: np.ndarray, faces: np.ndarray) -> int:
 
     mesh = trimesh.Trimesh(np.asarray(vertices, np.float64), np.asarray(faces, np.int64), process=False)
     data = mesh.export(file_type="stl")
-    with atomic_path(path, suffix=".stl") as tmp:
-        Path(tmp).write_bytes(data)
+    write_bytes(path, data)
     return len(data)
 
 

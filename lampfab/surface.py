@@ -206,7 +206,8 @@ def fine_shape(nu: int, nv: int, tessellation: int) -> tuple[int, int]:
 
 
 def refine(cyl: Cylinder, heights: np.ndarray, factor: int = 4) -> np.ndarray:
-    """The same surface on a grid ``factor`` times finer in u and v (coarse-to-fine)."""
+    """The same surface on a grid ``factor`` times finer in u and v (coarse-to-fine):
+    (nu, nv) mm node offsets -> (nu * factor, (nv - 1) * factor + 1) mm."""
     nu, nv = heights.shape
     return sample(cyl, heights, nu * factor, (nv - 1) * factor + 1)
 
@@ -253,7 +254,8 @@ def outer_mesh(cyl: Cylinder, heights: np.ndarray, tessellation: int) -> tuple[n
 
 
 def cap_faces(mu: int, mv: int, centre_bottom: int, centre_top: int) -> np.ndarray:
-    """Fans closing the bottom (z=0) and top rims of the grid to two centre vertices.
+    """Fans closing the bottom (z=0) and top rims of a (mu, mv) vertex grid (index
+    i * mv + j) to two centre vertices: (2 * mu, 3) int64 faces.
 
     Winding makes the bottom face -z and the top face +z (outward for a solid).
     """
@@ -291,6 +293,12 @@ def radius_derivatives(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int, ord
     return (*first, along_u[2] @ pz[0], along_u[1] @ pz[1], along_u[0] @ pz[2])
 
 
+def tilt_tangent(r: np.ndarray, r_u: np.ndarray, r_z: np.ndarray) -> np.ndarray:
+    """tan of the angle between the surface normal and the radial direction, from the
+    radius r (mm), dr/du (mm per rad) and dr/dz (1) of the same shape; float64, 1."""
+    return np.hypot(r_u / r, r_z)
+
+
 def slopes_deg(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int) -> tuple[np.ndarray, np.ndarray]:
     """Angle between the surface normal and the radial direction, from the spline's
     exact derivatives, and its part along z.
@@ -299,7 +307,7 @@ def slopes_deg(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int) -> tuple[np
     where the radius grows upward, i.e. the surface faces down).
     """
     r, r_u, r_z = radius_derivatives(cyl, heights, mu, mv, order=1)
-    tilt = np.degrees(np.arctan(np.hypot(r_u / r, r_z)))
+    tilt = np.degrees(np.arctan(tilt_tangent(r, r_u, r_z)))
     return tilt, np.degrees(np.arctan(r_z))
 
 
@@ -317,7 +325,7 @@ def slope_penalty(cyl: Cylinder, heights: np.ndarray, max_tilt_deg: float, max_r
     p0, p1 = u_matrix(nu, mu, 0, cyl.creased), u_matrix(nu, mu, 1, cyl.creased)
     z0, z1 = open_matrix(nv, mv), open_matrix(nv, mv, 1) / cyl.height_mm
     r, r_u, r_z = radius_derivatives(cyl, heights, mu, mv, order=1)
-    t = np.hypot(r_u / r, r_z)
+    t = tilt_tangent(r, r_u, r_z)
     excess = np.maximum(t - np.tan(np.radians(max_tilt_deg)), 0.0)
     n = excess.size
     d_t = 2.0 * excess / n / np.maximum(t, 1e-12)

@@ -117,7 +117,7 @@ def _take(cls, v, index):
     return cls(*(dr.gather(type(c), c, index) for c in (v.x, v.y, v.z)))
 
 
-def interface(mi, d, n, ior: float):
+def interface(d, n, ior: float):
     """What happens at a dielectric interface (glass of ``ior`` in air), ``n`` the
     hit facets' outward normals: (unpolarized Fresnel reflectance, 1 under total
     internal reflection; reflected unit directions; refracted unit directions)."""
@@ -142,7 +142,7 @@ def refract_or_reflect(mi, d, n, ior: float, xi):
     where ``xi`` (uniform in [0, 1)) falls below the Fresnel reflectance."""
     import drjit as dr
 
-    fresnel, reflected, refracted = interface(mi, d, n, ior)
+    fresnel, reflected, refracted = interface(d, n, ior)
     return dr.select(xi < fresnel, reflected, refracted)
 
 
@@ -168,7 +168,7 @@ def into_glass(mi, cavity, o, d, ior: float, reflected_every: int):
     import drjit as dr
 
     si = cavity.ray_intersect(mi.Ray3f(o, d), mi.RayFlags.Minimal, False)
-    reflectance, reflected, refracted = interface(mi, d, si.n, ior)
+    reflectance, reflected, refracted = interface(d, si.n, ior)
     # One kernel for the intersection: each later use of a lazy result would re-run it.
     dr.eval(si.p, reflectance, reflected, refracted)
     some = dr.arange(mi.UInt32, 0, dr.width(d), reflected_every)
@@ -176,7 +176,7 @@ def into_glass(mi, cavity, o, d, ior: float, reflected_every: int):
     back = _take(mi.Vector3f, reflected, some)
     across = cavity.ray_intersect(mi.Ray3f(start + tolerances.RAY_EPSILON_MM * back, back),
                                   mi.RayFlags.Minimal, False)
-    far_reflectance, _, far_refracted = interface(mi, back, across.n, ior)
+    far_reflectance, _, far_refracted = interface(back, across.n, ior)
     dr.eval(across.p, far_reflectance, far_refracted)
     p = _concat(mi.Point3f, si.p, across.p)
     d_glass = _concat(mi.Vector3f, refracted, far_refracted)

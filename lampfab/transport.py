@@ -332,7 +332,7 @@ def _transport(mass: np.ndarray, x1: np.ndarray, x2: np.ndarray, wall: Wall, lig
     blur = (BLUR_PX * (y1[-1] - y1[0]) / (cols - 1)) ** 2
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # log(0) for black cells is meant
-        a1, a2, err, _ = ot.barycentric_map(mass + 1e-9 * mass.max(), banded.T, x1 - shift, x2 - shift,
+        a1, a2, err = ot.barycentric_map(mass + 1e-9 * mass.max(), banded.T, x1 - shift, x2 - shift,
                                             y1 - shift, y2 - shift, blur)
     across = np.interp(a1 + shift, y1, (np.arange(cols) + 0.5) / cols) * wall.width_mm
     down = np.interp(a2 + shift, y2, (np.arange(-pad, rows + pad) + 0.5) / rows) * wall.height_mm
@@ -421,9 +421,8 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     max_rise_deg = 90.0 if max_overhang_deg is None else max_overhang_deg - SLOPE_MARGIN_DEG
 
     def overshoot():
-        # As surface.slopes_deg measures them (the tilt's tangent, and dr/dz for the rise).
         r, r_u, r_z = surface.radius_derivatives(cyl, heights, *fine, order=1)
-        tan_tilt = np.hypot(r_u / r, r_z)
+        tan_tilt = surface.tilt_tangent(r, r_u, r_z)
         return (float(np.degrees(np.arctan(tan_tilt.max()))), _overshoot_deg(tan_tilt, max_tilt_deg),
                 _overshoot_deg(r_z, max_rise_deg))
 

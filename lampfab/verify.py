@@ -52,7 +52,9 @@ def load(design_path) -> Loaded:
 def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bounces: int,
                   light_radius_mm: float | None = None,
                   reflection_place=None) -> tuple[list[np.ndarray], dict]:
-    """Trace the design's STL onto its walls (``loaded.walls``).  Returns (flux images, info).
+    """Trace the design's STL onto its walls (``loaded.walls``).  Returns (per-wall flux
+    images, ``room.image_shape(wall, image_px)`` float64, share of the emitted light per
+    pixel; info as ``trace.render_walls``'s).
 
     ``light_radius_mm`` None: the design's own light (an LED of its radius, a beam with
     its spread); a number: an LED of that radius (a beam: parallel).

@@ -360,7 +360,7 @@ def test_paint_marks_the_failing_cells_red(tmp_path):
     fab = fab_for("sla", min_wall_mm=1.0)
     res = checks.run_checks(CYL, h, *inner, sv, sf, fab, LIGHT, samples=SAMPLES)
     out = tmp_path / "checks.png"
-    checks.paint_checks(out, CYL, h, *inner, sv, sf, fab, LIGHT, res, samples=SAMPLES)
+    checks.paint_checks(out, CYL, h, *inner, fab, res, samples=SAMPLES)
     img = np.asarray(Image.open(out).convert("RGB"))
     w, h_px = SAMPLES
     assert img.shape[1] == w

@@ -62,3 +62,13 @@ def test_bundled_inner_layer_is_closed_and_encloses_the_light():
     v, f = load(None)
     assert inner.winding_number(v, f, LIGHT) == pytest.approx(1.0)
     assert trimesh.Trimesh(v, f, process=False).is_watertight
+
+
+def test_bundled_inner_layer_is_the_documented_revolve():
+    """lampfab/data/inner_default.obj is ``default_inner_mesh()`` written out: the
+    function is its recipe and its description."""
+    made = inner.default_inner_mesh()
+    bundled = trimesh.load(inner.DEFAULT_INNER, process=False)
+    assert bundled.faces.shape == made.faces.shape
+    assert np.allclose(np.sort(bundled.vertices, axis=0), np.sort(made.vertices, axis=0), atol=1e-6)
+    assert bundled.volume == pytest.approx(made.volume, rel=1e-9)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from lampfab.metrics import compare, pearson, share, ssim
+from lampfab.metrics import compare, pearson, ssim
 
 
 @pytest.fixture
@@ -76,10 +76,3 @@ def test_shape_mismatch_and_nan_raise(target):
     bad[0, 0] = np.nan
     with pytest.raises(ValueError):
         ssim(bad, target)
-
-
-def test_share():
-    assert share(0.25, 1.0) == 0.25
-    assert share(np.full((10, 10), 0.01), 2.0) == pytest.approx(0.5)
-    with pytest.raises(ValueError):
-        share(1.0, 0.0)

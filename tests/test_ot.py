@@ -14,7 +14,7 @@ def test_transport_map_pushes_uniform_light_onto_a_disc():
     grid_m = (np.arange(m) + 0.5) / m
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        y1, y2, err, _ = ot.barycentric_map(np.ones((n, n)), target, grid_n, grid_n, grid_n, grid_m, (1 / n) ** 2)
+        y1, y2, err = ot.barycentric_map(np.ones((n, n)), target, grid_n, grid_n, grid_n, grid_m, (1 / n) ** 2)
     pushed, _, _ = np.histogram2d(y1.ravel(), y2.ravel(), bins=[n, m], range=[[0, 1], [0, 1]])
     assert err < 0.02
     assert np.corrcoef(pushed.ravel(), target.ravel())[0, 1] > 0.9
@@ -28,13 +28,16 @@ def test_marginal_error_measures_the_light_an_unconverged_transport_misplaces():
     grid = (np.arange(n) + 0.5) / n + 1.0  # positive: the maps take logs of coordinates
     target = np.zeros((n, n))
     target[20:28, 4:12] = 1.0  # a square far from the source's middle
+    eps = (1 / n) ** 2
+    cost = (grid[:, None] - grid[None, :]) ** 2
+    source = np.ones((n, n))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        converged = ot.barycentric_map(np.ones((n, n)), target, grid, grid, grid, grid, (1 / n) ** 2)
-        cold = (np.zeros((n, n)), np.zeros((n, n)))  # zero potentials: no annealing either
-        stopped = ot.barycentric_map(np.ones((n, n)), target, grid, grid, grid, grid, (1 / n) ** 2,
-                                     iterations=5, warm=cold)
-    for y1, y2, err, _ in (converged, stopped):
+        converged = ot.barycentric_map(source, target, grid, grid, grid, grid, eps)
+        # A zero target potential: the plan of a transport that has not started.
+        stopped = ot.maps_of(source / source.sum(), target / target.sum(), cost, cost, grid, grid,
+                             np.zeros((n, n)), eps)
+    for y1, y2, err in (converged, stopped):
         pushed, _, _ = np.histogram2d(y1.ravel(), y2.ravel(), bins=[n, n], range=[[1, 2], [1, 2]])
         misplaced = np.abs(pushed / pushed.sum() - target / target.sum()).sum()  # L1, as the error
         assert err == pytest.approx(misplaced, abs=0.05)

@@ -125,7 +125,9 @@ def test_edge_check_sees_holes_flips_and_shells():
 
 def test_cavity_mesh_is_inner_plus_bore():
     v, f = inner()
-    cv, cf, bore = solid.cavity_mesh(v, f, 6.0)
+    bore = solid.plan_bore(v, f, 6.0, 128)
+    cavity, _ = solid._cavity(v, f, bore)
+    cv, cf = solid._arrays(cavity)
     assert solid.edge_check(cf)["watertight"]
     expected = solid.mesh_volume(v, f) + bore.polygon_area_mm2 * (bore.z_floor_mm - bore.z_bottom_mm)
     assert solid.mesh_volume(cv, cf) == pytest.approx(expected, rel=1e-9)

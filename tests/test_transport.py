@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lampfab import checks_geometry, concavity, profile, raymap, room, surface, trace, transport
+from lampfab import checks_geometry, concavity, raymap, room, surface, trace, transport
 
 
 def _nominal(walls):
