@@ -46,7 +46,7 @@ import numpy as np
 from . import tolerances
 from .checks_cnc import cavity_access, tool_axis, tool_axis_cells
 from .checks_geometry import SAMPLES, Fields, compute_fields
-from .checks_mesh import MeshReport, inspect_mesh
+from .checks_mesh import MeshReport, face_area_nz, inspect_mesh
 from .profile import Fabrication
 from .surface import Cylinder
 
@@ -259,10 +259,7 @@ def cavity_overhang_faces(iv: np.ndarray, fi: np.ndarray):
     point into the glass), so a cavity face is down-facing where the inner normal points
     up: asin(n_z) past vertical.
     """
-    tri = iv[fi]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    area = 0.5 * np.linalg.norm(cross, axis=1)
-    nz = cross[:, 2] / np.maximum(2 * area, 1e-300)
+    area, nz = face_area_nz(iv, fi)
     angle = np.degrees(np.arcsin(np.clip(nz, 0.0, 1.0)))
     return angle, area
 

@@ -31,6 +31,7 @@ import numpy as np
 
 from . import tolerances
 from .checks_geometry import Fields
+from .checks_mesh import face_area_nz
 from .profile import Fabrication
 
 # A cavity face is "up-facing" (hidden from a tool below) when its normal into the glass
@@ -113,12 +114,9 @@ def hidden_cavity(iv: np.ndarray, fi: np.ndarray, mount_radius_mm: float) -> tup
     from .solid import plan_bore
 
     bore = plan_bore(iv, fi, mount_radius_mm)
-    tri = iv[fi]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    area = 0.5 * np.linalg.norm(cross, axis=1)
-    nz = cross[:, 2] / np.maximum(2 * area, 1e-300)
+    area, nz = face_area_nz(iv, fi)
     up = nz < -_UP_FACING_NZ
-    floor = up & np.all(np.abs(tri[:, :, 2] - bore.z_floor_mm) <= tolerances.WELD_MM, axis=1)
+    floor = up & np.all(np.abs(iv[fi][:, :, 2] - bore.z_floor_mm) <= tolerances.WELD_MM, axis=1)
     hidden_area = np.where(up, area, 0.0)
     if bore.counterbore:
         hidden_area[floor] = 0.0

@@ -53,6 +53,15 @@ def weld(vertices: np.ndarray, faces: np.ndarray, tol_mm: float = tolerances.WEL
     return vertices[first], f[ok], len(vertices) - len(first), int((~ok).sum())
 
 
+def face_area_nz(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each triangle's area ((m,) mm^2) and the z part of its unit normal ((m,), by the
+    faces' winding); vertices (n, 3) float mm, faces (m, 3) int."""
+    tri = vertices[faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    return area, cross[:, 2] / np.maximum(2 * area, 1e-300)  # a degenerate face: n_z 0
+
+
 def inspect_mesh(vertices: np.ndarray, faces: np.ndarray, self_intersections: bool = True) -> MeshReport:
     """Count every defect of a triangle mesh (vertices (n, 3) mm, faces (m, 3) int).
 
