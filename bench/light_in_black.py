@@ -13,6 +13,10 @@ black (below 5 % of its peak), and the wall's SSIM without that part (for the li
 never reflected: without its part in the black): what the made lamp would score were
 that light gone.
 
+With ``--sectors`` the outer surface's part is split by the 90° sector of the lens where
+the reflection happened (right: u -45..45°, front, left, back), which tells which
+sector's reflections reach which wall.
+
 With ``--lens-cells`` it also says where on the lens the direct light in the black
 leaves it: the exit points of the light never reflected, binned in 5° of u by 10 mm of
 height, and the cells that send more than a quarter of their light into the black.
@@ -32,6 +36,9 @@ sys.path.insert(0, str(ROOT))
 from lampfab import artifacts, image, metrics, verify  # noqa: E402
 
 PLACES = {1: "inner layer", 2: "outer surface", 3: "flat faces"}
+SECTORS = ("right", "front", "left", "back")  # by u, from -45°, 90° each
+PLACES_BY_SECTOR = {1: "inner layer", **{4 + k: f"outer surface, {name} sector" for k, name in enumerate(SECTORS)},
+                    3: "flat faces"}
 BLACK = 0.05  # of the target's peak
 FLAT_NZ = np.cos(np.radians(8.0))  # the outer surface tilts 60-75° at most (the profiles' slope limits)
 CELL_DEG, CELL_MM = 5.0, 10.0  # --lens-cells: the bins of exit points on the lens, in u and height
@@ -48,6 +55,20 @@ def place(p, n):
     mi = mitsuba()
     radial = (p.x * n.x + p.y * n.y) / dr.maximum(dr.sqrt(p.x * p.x + p.y * p.y), 1e-6)
     return dr.select(dr.abs(n.z) > FLAT_NZ, mi.UInt32(3), dr.select(radial < 0, mi.UInt32(1), mi.UInt32(2)))
+
+
+def place_by_sector(p, n):
+    """``place``, with the outer surface's code 2 split by sector: see PLACES_BY_SECTOR."""
+    import drjit as dr
+
+    from lampfab.mi_env import mitsuba
+
+    mi = mitsuba()
+    from_right_edge = dr.atan2(p.y, p.x) + np.pi / 4
+    from_right_edge = dr.select(from_right_edge < 0, from_right_edge + 2 * np.pi, from_right_edge)
+    sector = mi.UInt32(dr.minimum(dr.floor(from_right_edge / (np.pi / 2)), 3))
+    code = place(p, n)
+    return dr.select(code == 2, 4 + sector, code)
 
 
 def lens_cells(loaded: verify.Loaded, blacks: list[np.ndarray], photons: int, seed: int) -> None:
@@ -95,26 +116,30 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("builds", nargs="+", type=Path, help="build folders holding design.json (make lamp's)")
     parser.add_argument("--photons", type=float, default=16e6, help="photons traced (default: verify's 16 M)")
+    parser.add_argument("--sectors", action="store_true",
+                        help="split the outer surface's reflections by the sector they happen in")
     parser.add_argument("--lens-cells", action="store_true",
                         help="also list the lens cells whose direct light lands in the black (4 M more photons)")
     args = parser.parse_args()
     for build in args.builds:
         loaded = verify.load(build / "design.json")
         design, walls = loaded.design, loaded.walls
-        images, info = verify.render_design(loaded, 64, int(args.photons), 7, 8, 0.0, place)
+        places = PLACES_BY_SECTOR if args.sectors else PLACES
+        images, info = verify.render_design(loaded, 64, int(args.photons), 7, 8, 0.0,
+                                            place_by_sector if args.sectors else place)
         print(f"\n{build}: share of each wall's light / of it in the target's black / the wall's SSIM without it")
-        print("| wall | SSIM | never reflected | " + " | ".join(f"off the {name}" for name in PLACES.values()) + " |")
-        print("|---|---|" + "---|" * (1 + len(PLACES)))
+        print("| wall | SSIM | never reflected | " + " | ".join(f"off the {name}" for name in places.values()) + " |")
+        print("|---|---|" + "---|" * (1 + len(places)))
         blacks = []
         for k, wall in enumerate(walls):
             target = image.letterbox(artifacts.read_linear_png16(build / design["walls"][k]["target"]), *images[k].shape)
             black = target < BLACK * target.max()
             blacks.append(black)
             total = images[k]
-            parts = {code: info["ghosts_by_place"].get(code, [np.zeros_like(total)] * len(walls))[k] for code in PLACES}
+            parts = {code: info["ghosts_by_place"].get(code, [np.zeros_like(total)] * len(walls))[k] for code in places}
             parts[0] = total - sum(parts.values())
             cells = []
-            for code in [0, *PLACES]:
+            for code in [0, *places]:
                 part = np.where(black, parts[code], 0.0) if code == 0 else parts[code]
                 cells.append(f"{parts[code].sum() / total.sum():.1%} / {part[black].sum() / total.sum():.1%} / "
                              f"{metrics.ssim(total - part, target):.2f}")
