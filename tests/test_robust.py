@@ -457,3 +457,15 @@ def test_interrupted_runs_resume_to_the_same_bytes_as_an_uninterrupted_one(tmp_p
         stl.write_stl(out / "lens.stl", solid["vertices"], solid["faces"])
     assert (straight / "solid.npz").read_bytes() == (stopped / "solid.npz").read_bytes()
     assert (straight / "lens.stl").read_bytes() == (stopped / "lens.stl").read_bytes()
+
+
+def test_setup_refuses_an_old_python_with_one_line(tmp_path):
+    """stages/00_setup.sh stops before installing anything when python3 is older than
+    3.11 (lampfab reads profiles with tomllib)."""
+    fake = tmp_path / "python3"
+    fake.write_text('#!/bin/sh\n[ "$1" = "--version" ] && echo "Python 3.10.12"\nexit 1\n')
+    fake.chmod(0o755)
+    env = {**os.environ, "PATH": f"{tmp_path}:{os.environ['PATH']}"}
+    run = subprocess.run(["bash", str(ROOT / "stages" / "00_setup.sh")], env=env, capture_output=True, text=True)
+    assert run.returncode == 1
+    assert run.stderr.strip() == "lampfab setup: needs Python 3.11 or newer as python3 (found: Python 3.10.12)"
