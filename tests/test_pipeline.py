@@ -33,6 +33,10 @@ def test_make_lamp_writes_every_artifact(lamp):
                  "export.json", "verify.json", "report.html", "verify/front_led.png"]:
         assert (out / name).is_file(), name
     assert "total" in run.stdout  # the per-stage summary
+    log = (out / "loss.csv").read_text().splitlines()
+    steps = json.loads((out / "optimize.json").read_text())["figures"]["steps"]
+    assert log[0] == "step,level,view,loss,seconds" and len(log) == 1 + steps
+    assert [int(row.split(",")[0]) for row in log[1:]] == list(range(steps))
     for report in ["prepare", "plan", "init", "optimize", "solid", "export", "verify"]:
         data = json.loads((out / f"{report}.json").read_text())
         assert data["versions"]["mitsuba"] and data["wall_time_s"] >= 0 and data["settings"]["design"]
