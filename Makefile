@@ -93,7 +93,7 @@ verify: $(B)/report.html
 
 # -- development -----------------------------------------------------------------------
 test: $(READY)
-	$(PY) -m pytest -m "not gpu" -q
+	$(PY) -m pytest -q
 
 bench: $(READY)
 	$(PY) bench/bench_methods.py --record

@@ -39,7 +39,8 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 def _targets(p: argparse.ArgumentParser, with_image: bool = True) -> None:
     if with_image:
-        p.add_argument("--target", default="", help="image projected on every wall (PNG or JPEG)")
+        # dest "image", as lamp's positional argument: the stages read one name for it
+        p.add_argument("--target", dest="image", default="", help="image projected on every wall (PNG or JPEG)")
     for wall in WALLS:
         p.add_argument(f"--target-{wall}", default="", help=f"image for the {wall} only")
     p.add_argument("--text", default="", help='words to project instead of an image, e.g. "Happy birthday"')
@@ -77,7 +78,7 @@ def parser() -> argparse.ArgumentParser:
 def _per_wall(args: argparse.Namespace, with_default: bool = False) -> dict[str, str]:
     out = {w: getattr(args, f"target_{w}") for w in WALLS if getattr(args, f"target_{w}")}
     if with_default:
-        out["all"] = args.target
+        out["all"] = args.image
     return out
 
 
@@ -91,15 +92,16 @@ def run_stage(name: str, args: argparse.Namespace) -> None:
     elif name == "summary":
         pipeline.summary(build)
     else:
-        _pipeline_stage(build, name, vars(args).get("target"), args)  # only prepare takes --target
+        _pipeline_stage(build, name, args)
 
 
-def _pipeline_stage(build, name: str, image: str | None, args: argparse.Namespace) -> None:
-    """One of ``pipeline.STAGES`` on ``build``; ``image`` is the picture for every wall."""
+def _pipeline_stage(build, name: str, args: argparse.Namespace) -> None:
+    """One of ``pipeline.STAGES`` on ``build`` (prepare reads ``args.image`` and the
+    other images, check ``args.allow_fail``)."""
     from . import pipeline
 
     if name == "prepare":
-        pipeline.prepare(build, image, _per_wall(args), args.text, args.panorama)
+        pipeline.prepare(build, args.image, _per_wall(args), args.text, args.panorama)
     elif name == "check":
         pipeline.check(build, args.allow_fail)
     else:
@@ -130,7 +132,7 @@ def _lamp(args: argparse.Namespace) -> None:
                       {**_per_wall(args), "all": args.image, "panorama": args.panorama}, args.text)
     for name in pipeline.STAGES:
         t0 = time.time()
-        _pipeline_stage(build, name, args.image, args)
+        _pipeline_stage(build, name, args)
         print(f"== {name} done in {time.time() - t0:.1f} s", flush=True)
 
 

@@ -59,7 +59,7 @@ def limit_concavity(cyl: surface.Cylinder, heights: np.ndarray, tool_radius_mm: 
     neighbours as long as the hollow is too tight, periodic around, one-sided at the
     caps), so detail elsewhere is kept.
     With ``tool_radius_mm`` 0 (a print) the heights are returned as they are."""
-    heights = given = np.asarray(heights, np.float64)
+    heights = np.asarray(heights, np.float64)
     radius = concave_radius(cyl, heights)
     if tool_radius_mm <= 0:
         return heights, float(radius.min())
@@ -71,6 +71,7 @@ def limit_concavity(cyl: surface.Cylinder, heights: np.ndarray, tool_radius_mm: 
     size = 2 * SUPPORT_CELLS + 1
     neighbours = np.full(nv, 4.0)
     neighbours[[0, -1]] = 3.0  # the cap rows have one neighbour up or down
+    moved = False
     for _ in range(passes):
         tight = radius < goal
         if not tight.any():
@@ -85,12 +86,13 @@ def limit_concavity(cyl: surface.Cylinder, heights: np.ndarray, tool_radius_mm: 
         vertical[:, 1:] += heights[:, :-1]
         mean = (np.roll(heights, 1, 0) + np.roll(heights, -1, 0) + vertical) / neighbours
         heights = heights + rate * (mean - heights)
+        moved = True
         near_moved = maximum_filter((rate > 0).any(axis=1), size=2 * REMEASURE_NODES + 1, mode="wrap")
         rows = np.flatnonzero(near_moved[node_u])
         radius[rows] = concave_radius(cyl, heights, rows)
-    if heights is given:  # no pass ran: the first measure was whole
-        return heights, float(radius.min())
-    return heights, float(concave_radius(cyl, heights).min())
+    if moved:  # the passes measured only near what they moved
+        radius = concave_radius(cyl, heights)
+    return heights, float(radius.min())
 
 
 def hollow_penalty(cyl: surface.Cylinder, heights: np.ndarray, max_curvature: float,
