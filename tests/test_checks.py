@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import manifold3d as m3
 import numpy as np
 import pytest
 
@@ -16,8 +17,6 @@ from lampfab import checks, surface
 from lampfab.checks_distance import closest_on_triangles, distance_to_mesh
 from lampfab.checks_geometry import compute_fields
 from lampfab.profile import PROFILE_DIR, Fabrication, load_fabrication
-
-m3 = pytest.importorskip("manifold3d")
 
 R, H = 30.0, 40.0
 NU, NV = 64, 16

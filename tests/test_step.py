@@ -3,12 +3,10 @@
 import numpy as np
 import pytest
 
-pytest.importorskip("OCP")
+from lampfab import solid, step, stl, surface, tolerances
+from lampfab.errors import GeometryError, LampfabError
 
-from lampfab import solid, step, stl, surface, tolerances  # noqa: E402
-from lampfab.errors import GeometryError, LampfabError  # noqa: E402
-
-from test_solid import CYL, bumps, inner  # noqa: E402
+from test_solid import CYL, bumps, inner
 
 SAMPLES = (64, 15)          # aligned with the 32 x 8 heightmap: 2 per cell in u and v
 

@@ -47,15 +47,36 @@ def plain_room(mi, default_design, cyl, inner_layer):
             [room.image_shape(w, 16) for w in walls])
 
 
-def test_render_conserves_light_and_is_deterministic(plain_room):
+def test_render_lights_each_wall_by_its_solid_angle_and_is_deterministic(plain_room):
     scene, light, walls, shapes = plain_room
     a, info = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3)
     b, _ = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3)
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
-    assert sum(info["shares"]) + info["lost"] + info["trapped"] == pytest.approx(1.0)
-    assert 0.02 < min(info["shares"]) and info["trapped"] < 0.05
-    # The plain lens is symmetric: the three walls get the same light within noise.
-    assert max(info["shares"]) - min(info["shares"]) < 0.01
+    assert info["lost"] > 0 and info["trapped"] < 0.05
+    # The plain lens's bore and outer side are coaxial cylinders: a ray from the light crosses
+    # them as a slab and keeps its direction, and what one side reflects inwards leaves through
+    # the opposite side in its own direction too.  So each wall gets the light of the solid
+    # angle it fills, give or take the roof's and caps' few per cent.
+    for share, wall in zip(info["shares"], walls):
+        assert share == pytest.approx(_solid_angle_share(wall, light), rel=0.05), wall.name
+
+
+def _solid_angle_share(wall, point) -> float:
+    """The share of a sphere of directions from ``point`` that falls on the ``wall``'s
+    rectangle: the exact sum over the four rectangles with a corner at the foot of the
+    perpendicular (Omega = atan(x y / (d sqrt(d^2 + x^2 + y^2))) each)."""
+    ex, ey = wall.right / np.linalg.norm(wall.right), wall.down / np.linalg.norm(wall.down)
+    normal = np.cross(ex, ey)
+    rel = wall.origin - point
+    d = abs(float(rel @ normal))
+    x0, y0 = float(rel @ ex), float(rel @ ey)
+    x1, y1 = x0 + np.linalg.norm(wall.right), y0 + np.linalg.norm(wall.down)
+
+    def corner(x, y):
+        return np.arctan(x * y / (d * np.sqrt(d * d + x * x + y * y)))
+
+    omega = corner(x1, y1) - corner(x0, y1) - corner(x1, y0) + corner(x0, y0)
+    return float(omega) / (4.0 * np.pi)
 
 
 def test_ghosts_are_the_reflected_part_of_the_light(plain_room):
