@@ -41,7 +41,8 @@ help:
 	@echo "make test | make bench | make clean"
 	@echo "variables: TARGET_FRONT/LEFT/RIGHT/FLOOR (per-wall images), ALLOW_FAIL=1 (go on after a failed check),"
 	@echo "           BUILD=build (output folder), NAME (default: the image's name)"
-	@echo "without make: lampfab --help, lampfab <stage> --help"
+	@echo "make .venv/.installed    the setup alone (system packages, .venv/, lampfab)"
+	@echo "without make: .venv/bin/lampfab --help, .venv/bin/lampfab <stage> --help"
 	@$(PY) -m lampfab.cli profiles 2>/dev/null \
 	  || echo "profiles: profiles/*.toml and profiles/fab/*.toml (listed here once the first make has installed lampfab)"
 
@@ -64,7 +65,8 @@ $(B)/prepare.json: $(B)/settings.json
 $(B)/plan.json: $(B)/settings.json
 	$(call RUN,20_plan)
 
-$(B)/init.json: $(B)/prepare.json
+# plan only reports, but a user should read its report before the long stages start.
+$(B)/init.json: $(B)/prepare.json | $(B)/plan.json
 	$(call RUN,25_init)
 
 $(B)/optimize.json: $(B)/init.json

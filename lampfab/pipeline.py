@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -114,7 +115,11 @@ class Build:
 
 
 def _log(msg: str) -> None:
-    print(msg, flush=True)
+    """One line on stdout, above any progress bar on the terminal rather than through it."""
+    from tqdm import tqdm
+
+    tqdm.write(msg, file=sys.stdout)
+    sys.stdout.flush()
 
 
 def _per_kind(step):
@@ -586,11 +591,19 @@ def verify(build: Build) -> dict:
     from . import verify as verify_mod
     from .tolerances import OPTIMIZER_MATCH_R
 
+    from tqdm import tqdm
+
     v = build.design.verify
     design_path = build.path("design.json")
     report = build.begin("verify", {"design": design_path, "stl": build.path("lens.stl")})
+    # Its parts take a minute together with nothing to print between them: a bar by part.
+    bar = tqdm(total=4, desc="verify", unit="part", dynamic_ncols=True,
+               bar_format="{desc}: {n}/{total} parts{postfix} [{elapsed}]")
+    bar.set_postfix_str("tracing the exported lens")
     figures = verify_mod.verify(design_path, build.path("verify"), v.image_px, v.photons,
                                 build.design.optimize.seed + 7, v.max_bounces)
+    bar.update()
+    bar.set_postfix_str("tolerance study")
     if build.path("optimize_render.npz").exists():
         agree = verify_mod.optimizer_agreement(build.path("verify"), build.path("optimize_render.npz"),
                                                list(figures["walls"]))
@@ -607,10 +620,16 @@ def verify(build: Build) -> dict:
         _log(f"verify: WARNING: the exported lens's render matches the optimizer's only to r "
              f"{figures['optimizer_match_min']:.3f} (< {OPTIMIZER_MATCH_R})")
     figures.update(_finishing(build))
+    bar.update()
+    bar.set_postfix_str("the lamp's renders")
     report.figure(**figures)
     pictures = _report_pictures(build)
+    bar.update()
+    bar.set_postfix_str("report.html")
     report.write(build.path("verify.json"))
     _write_report(build, figures, pictures, report_mod)
+    bar.update()
+    bar.close()
     return report.data
 
 
