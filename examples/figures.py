@@ -10,8 +10,8 @@ When the walls have different targets (a panorama, per-wall images), a first row
 each wall's target.  ``--build DIR`` reads DIR/<name> instead of build/<name>.
 """
 
+import argparse
 import json
-import sys
 from pathlib import Path
 
 from PIL import Image, ImageDraw
@@ -61,9 +61,9 @@ def figure(name: str, builds: Path = ROOT / "build") -> Path:
 
 
 if __name__ == "__main__":
-    args = sys.argv[1:]
-    builds = ROOT / "build"
-    if args[:1] == ["--build"]:
-        builds, args = Path(args[1]), args[2:]
-    for n in args:
-        print(figure(n, builds))
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("names", nargs="+", help="build names, e.g. apple for build/apple")
+    parser.add_argument("--build", type=Path, default=ROOT / "build", help="the builds' folder (default: build)")
+    args = parser.parse_args()
+    for n in args.names:
+        print(figure(n, args.build))

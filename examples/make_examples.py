@@ -18,6 +18,7 @@ distance field) and reduced with area averaging (anti-aliased edges); the portra
 
 from __future__ import annotations
 
+import argparse
 import math
 from pathlib import Path
 
@@ -198,6 +199,8 @@ def horse() -> Image.Image:
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                            epilog="Writes the six images next to this script.").parse_args()
     for name, make in (("apple", apple), ("star", star), ("portrait", portrait), ("panorama", panorama),
                        ("astronaut", astronaut), ("horse", horse)):
         out = HERE / f"{name}.png"
