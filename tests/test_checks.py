@@ -425,6 +425,7 @@ def test_fabrication_profiles_load_and_set_every_field(name, process):
     fields = {f.name for f in dataclasses.fields(Fabrication)} - {"path"}
     assert keys == fields
     assert (fab.tool_radius_mm > 0) == process.startswith("cnc")
+    assert 1.3 < fab.ior < 2.0 and fab.min_wall_mm > 0
 
 
 def test_3axis_profile_needs_two_setups(tmp_path):

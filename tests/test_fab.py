@@ -9,7 +9,7 @@ import pytest
 from lampfab import guidance, lens, room, solid, stl, tolerance_study, trace
 from lampfab.profile import load_fabrication
 
-from test_solid import CYL, bumps, inner
+from helpers import CYL, bumps, inner
 
 
 @pytest.fixture(scope="module")

@@ -10,21 +10,15 @@ import re
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
 
-from lampfab import gltf, inner, profile, room, targets
+from lampfab import inner, profile, room, targets
 from lampfab.errors import LampfabError
 
-ROOT = Path(__file__).resolve().parent.parent
-TINY = ROOT / "tests" / "data" / "tiny.toml"
-
-
-def make(*args):
-    return subprocess.run(["make", "--no-print-directory", *args], cwd=ROOT, capture_output=True, text=True)
+from helpers import ROOT, TINY, make
 
 
 # -- text ---------------------------------------------------------------------------
@@ -203,13 +197,27 @@ def test_text_and_panorama_together_is_one_line(tmp_path):
 
 # -- Blender round trip ----------------------------------------------------------------
 def test_glb_inner_layer_reads_as_the_same_mesh(tmp_path):
-    """An inner layer exported as GLB (metres, Y up, as Blender writes it) loads in mm, Z up."""
+    """An inner layer exported as GLB (metres, Y up, as Blender writes it) loads in mm, Z up,
+    each vertex where it was: the layer is made lopsided, so a mirrored or turned reading
+    would not match, and the GLB is written by trimesh, not by lampfab's own writer."""
+    import trimesh
+
     design = profile.load_design("default")
     lens = design.lens
     args = (room.light_position(design), lens.outer_radius_mm, lens.max_offset_mm, lens.height_mm)
-    v_obj, f_obj = inner.load_inner(None, 1.0, *args)
+    v, f = inner.load_inner(None, 1.0, *args)
+    v = v.copy()
+    v[:, 0] *= np.where(v[:, 0] > 0, 1.3, 1.0)   # wider towards +x
+    v[:, 1] += 0.05 * (v[:, 2] - v[:, 2].min())  # leaning towards +y as it rises
+    blender = v[:, [0, 2, 1]] * np.array([1.0, 1.0, -1.0]) / 1000.0  # glTF: x, z, -y in metres
     glb = tmp_path / "inner.glb"
-    gltf.write_glb(glb, v_obj, f_obj, 1.5)
+    trimesh.Trimesh(blender, f, process=False).export(glb)
     v_glb, f_glb = inner.load_inner(glb, 1.0, *args)
-    assert v_glb.shape == v_obj.shape and len(f_glb) == len(f_obj)
-    np.testing.assert_allclose(np.sort(v_glb, axis=0), np.sort(v_obj, axis=0), atol=1e-4)
+    assert len(f_glb) == len(f)
+
+    def rows(a):
+        return a[np.lexsort(np.round(a, 3).T)]
+
+    np.testing.assert_allclose(rows(v_glb), rows(v), atol=1e-4)
+    mirrored = v * np.array([-1.0, 1.0, 1.0])
+    assert np.abs(rows(mirrored) - rows(v)).max() > 1.0  # the check above would see a mirror

@@ -24,6 +24,19 @@ def test_identical_images(target):
     assert compare(target, target) == pytest.approx({"pearson": 1.0, "ssim": 1.0})
 
 
+def test_figures_match_numpy_and_scikit_image(target):
+    """Pearson r is numpy's; SSIM is scikit-image's on the mean-normalized images with the
+    normalized target's range as data_range (the module docstring's definition)."""
+    from skimage.metrics import structural_similarity
+
+    render = np.roll(target, 3, axis=1) + 0.2 * np.random.default_rng(5).random(target.shape)
+    assert pearson(render, target) == pytest.approx(np.corrcoef(render.ravel(), target.ravel())[0, 1], abs=1e-12)
+    rn, tn = render / render.mean(), target / target.mean()
+    expected = structural_similarity(rn, tn, data_range=np.ptp(tn), gaussian_weights=True, sigma=1.5,
+                                     use_sample_covariance=False)
+    assert ssim(render, target) == pytest.approx(expected, abs=1e-12) and 0.1 < expected < 0.9
+
+
 def test_negative_image_anticorrelates(target):
     negative = 1.0 - target
     assert pearson(negative, target) < -0.9

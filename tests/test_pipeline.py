@@ -11,12 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-ROOT = Path(__file__).resolve().parent.parent
-TINY = ROOT / "tests" / "data" / "tiny.toml"
-
-
-def make(*args, cwd=ROOT):
-    return subprocess.run(["make", "--no-print-directory", *args], cwd=cwd, capture_output=True, text=True)
+from helpers import ROOT, TINY, make
 
 
 @pytest.fixture(scope="module")
@@ -44,6 +39,12 @@ def test_make_lamp_writes_every_artifact(lamp):
         assert data["versions"]["mitsuba"] and data["wall_time_s"] >= 0 and data["settings"]["design"]
     checks = json.loads((out / "checks.json").read_text())["figures"]
     assert checks["passed"] and not checks["allowed_to_fail"]
+    # plan: the plain lens lights more than each target, all the way round it.
+    for name, wall in json.loads((out / "plan.json").read_text())["figures"]["walls"].items():
+        assert 0.05 < wall["share_in_target"] < wall["share_on_plane"] <= 1, name
+        lit, (width, height) = wall["lit_extent_from_target_corner"], wall["target_mm"]
+        assert lit["left_mm"] <= 0 and lit["right_mm"] >= width and lit["top_mm"] <= 0 and lit["bottom_mm"] >= height
+        assert (out / "plan" / f"{name}.png").is_file()
 
 
 @pytest.mark.slow
@@ -147,6 +148,20 @@ def test_bad_image_is_one_line_and_leaves_no_files(tmp_path):
     assert run.returncode == 2
     assert run.stderr.count("\n") == 1 and str(bad) in run.stderr and "Traceback" not in run.stderr
     assert not (tmp_path / "b" / "prepare.json").exists()
+
+
+def test_lamp_without_make_reads_its_inputs_first(tmp_path):
+    """`lampfab lamp` (no make) refuses a bad image before any stage runs, and says what
+    is missing when it has nothing to project."""
+    bad = tmp_path / "photo.png"
+    bad.write_text("not a picture")
+    out = tmp_path / "b"
+    for args, words in (([str(bad)], str(bad)), ([], "nothing to project")):
+        run = subprocess.run([sys.executable, "-m", "lampfab.cli", "lamp", *args, "--out", str(out),
+                              "--profile", str(TINY)], cwd=ROOT, capture_output=True, text=True)
+        assert run.returncode == 2 and "Traceback" not in run.stderr
+        assert run.stderr.count("\n") == 1 and run.stderr.startswith("lampfab: ") and words in run.stderr
+        assert not out.exists()
 
 
 def test_help_is_instant_and_lists_the_stages():

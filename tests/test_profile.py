@@ -10,12 +10,6 @@ def test_bundled_design_profiles_load(name):
     assert d.name == name and d.room.walls
 
 
-@pytest.mark.parametrize("name", ["sla_resin", "acrylic_cnc3", "acrylic_cnc4", "glass"])
-def test_bundled_fabrication_profiles_load(name):
-    fab = profile.load_fabrication(name)
-    assert 1.3 < fab.ior < 2.0 and fab.min_wall_mm > 0
-
-
 @pytest.mark.parametrize("text, words", [
     ("[lens]\nouter_radius = 40\n", ["[lens] outer_radius", "unknown key"]),
     ("[lens]\nouter_radius_mm = -4\n", ["outer_radius_mm", "out of range", "10.0 to 300.0"]),

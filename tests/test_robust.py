@@ -2,6 +2,7 @@
 and faulty runs, bit-for-bit reproducibility."""
 
 import dataclasses
+import hashlib
 import io
 import json
 import os
@@ -19,12 +20,7 @@ from PIL import Image
 from lampfab import optimize, profile, resources, room, surface
 from lampfab.errors import LampfabError
 
-ROOT = Path(__file__).resolve().parent.parent
-TINY = ROOT / "tests" / "data" / "tiny.toml"
-
-
-def make(*args):
-    return subprocess.run(["make", "--no-print-directory", *args], cwd=ROOT, capture_output=True, text=True)
+from helpers import ROOT, TINY, make
 
 
 def files_under(folder: Path) -> list[Path]:
@@ -227,7 +223,8 @@ def test_unicode_spaces_16bit_and_palette_targets_are_accepted(tmp_path):
     out = build / "zoë's_lamp"
     report = json.loads((out / "prepare.json").read_text())
     assert report["figures"]["front_source"] == str(main) and report["figures"]["left_source"] == str(deep)
-    assert report["inputs"]["image_right"]["sha256"] and report["seed"] == 0
+    assert report["inputs"]["image_right"]["sha256"] == hashlib.sha256(palette.read_bytes()).hexdigest()
+    assert report["seed"] == 0
     for wall in ("front", "left", "right"):
         assert 0.05 < report["figures"][f"{wall}_mean_luminance"] < 0.5
         assert (out / "targets" / f"{wall}.png").is_file()
@@ -313,6 +310,12 @@ def test_a_fault_falls_back_to_the_last_checkpoint_with_a_smaller_step(tiny_desi
     assert np.all(np.isfinite(faulty.heights))
     assert np.abs(faulty.heights - 1).max() > np.abs(clean.heights - 1).max()  # the smaller step shows
     assert checkpoints == [3, 6]
+
+
+def test_the_loss_explodes_past_20_times_its_best():
+    no_gradient = np.zeros(3)
+    assert optimize._fault(2.01, no_gradient, best=0.1).startswith("the loss exploded (2.01, over 20x")
+    assert optimize._fault(1.99, no_gradient, best=0.1) is None
 
 
 def test_a_nan_gradient_is_a_fault_too(tiny_design):

@@ -5,30 +5,9 @@ import pytest
 
 from lampfab import solid, stl, surface
 from lampfab.errors import GeometryError, LampfabError
-from lampfab.inner import default_inner_mesh, winding_number
+from lampfab.inner import winding_number
 
-CYL = surface.Cylinder(radius_mm=40.0, height_mm=80.0)
-
-
-def bumps(nu=32, nv=8, seed=0, amp=2.0):
-    """Smooth random bumps of +-amp mm: a few low harmonics around and up."""
-    rng = np.random.default_rng(seed)
-    u = np.arange(nu)[:, None] * (2 * np.pi / nu)
-    z = np.linspace(0.0, 1.0, nv)[None, :]
-    h = np.zeros((nu, nv))
-    for k in range(1, 5):
-        for m in range(3):
-            a, b, c = rng.normal(size=3)
-            h += a * np.cos(k * u + b) * np.cos(m * np.pi * z + c)
-    return h * (amp / np.abs(h).max())
-
-
-def inner(sections=32, **kw):
-    """A coarse inner layer sized for CYL: r 20 mm, floor at z 12, roof apex at z 68."""
-    kw = {"radius_mm": 20.0, "z0_mm": 12.0, "z1_mm": 68.0, **kw}
-    mesh = default_inner_mesh(sections=sections, **kw)
-    return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
-
+from helpers import CYL, bumps, inner
 
 @pytest.fixture(scope="module")
 def lens():

@@ -6,7 +6,7 @@ import pytest
 from lampfab import solid, step, stl, surface, tolerances
 from lampfab.errors import GeometryError, LampfabError
 
-from test_solid import CYL, bumps, inner
+from helpers import CYL, bumps, inner
 
 SAMPLES = (64, 15)          # aligned with the 32 x 8 heightmap: 2 per cell in u and v
 

@@ -249,6 +249,7 @@ def test_the_overshoot_around_each_node_is_the_filtered_maximum(rng, nu, nv, k):
     assert np.array_equal(transport._around_nodes_max(field, k), expected)
 
 
+@pytest.mark.slow
 def test_a_ball_end_tool_radius_keeps_hollows_open(inner_layer, default_design, cyl):
     """A tight dimple the goals ask for: with a 3 mm ball-end tool the fit opens it up."""
     walls = room.walls(default_design)

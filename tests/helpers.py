@@ -1,0 +1,48 @@
+"""What several test modules share: the repository's paths, `make` as a user runs it, and
+a small lens (CYL, bumps, inner) for the solid, STEP and fabrication tests."""
+
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+from lampfab import surface
+from lampfab.inner import default_inner_mesh
+
+ROOT = Path(__file__).resolve().parent.parent
+TINY = ROOT / "tests" / "data" / "tiny.toml"
+
+# The Makefile reads these with ?=: a developer's exported TEXT or ALLOW_FAIL would change
+# every build the tests make.
+_MAKE_VARIABLES = ("TARGET", "TEXT", "PANORAMA", "NAME", "PROFILE", "FAB", "ALLOW_FAIL", "BUILD",
+                   "TARGET_FRONT", "TARGET_LEFT", "TARGET_RIGHT", "TARGET_FLOOR")
+
+
+def make(*args) -> subprocess.CompletedProcess:
+    """``make`` in the repository with ``args`` (targets and VAR=value), its output captured."""
+    env = {k: v for k, v in os.environ.items() if k not in _MAKE_VARIABLES}
+    return subprocess.run(["make", "--no-print-directory", *args], cwd=ROOT, capture_output=True, text=True, env=env)
+
+
+CYL = surface.Cylinder(radius_mm=40.0, height_mm=80.0)
+
+
+def bumps(nu=32, nv=8, seed=0, amp=2.0):
+    """Smooth random bumps of +-amp mm: a few low harmonics around and up."""
+    rng = np.random.default_rng(seed)
+    u = np.arange(nu)[:, None] * (2 * np.pi / nu)
+    z = np.linspace(0.0, 1.0, nv)[None, :]
+    h = np.zeros((nu, nv))
+    for k in range(1, 5):
+        for m in range(3):
+            a, b, c = rng.normal(size=3)
+            h += a * np.cos(k * u + b) * np.cos(m * np.pi * z + c)
+    return h * (amp / np.abs(h).max())
+
+
+def inner(sections=32, **kw):
+    """A coarse inner layer sized for CYL: r 20 mm, floor at z 12, roof apex at z 68."""
+    kw = {"radius_mm": 20.0, "z0_mm": 12.0, "z1_mm": 68.0, **kw}
+    mesh = default_inner_mesh(sections=sections, **kw)
+    return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
