@@ -587,11 +587,11 @@ def _light_json(build: Build) -> dict:
 # -- 7. verify ------------------------------------------------------------------------
 def verify(build: Build) -> dict:
     """Render the exported STL (true facets) from design.json; compare; write report.html."""
+    from tqdm import tqdm
+
     from . import report as report_mod
     from . import verify as verify_mod
     from .tolerances import OPTIMIZER_MATCH_R
-
-    from tqdm import tqdm
 
     v = build.design.verify
     design_path = build.path("design.json")
