@@ -175,8 +175,8 @@ def test_help_is_instant_and_lists_the_stages():
 
 @pytest.mark.slow
 def test_floor_and_per_wall_targets(tmp_path):
-    """A fourth surface, the floor behind the lamp, with an image of its own, the right
-    way round."""
+    """A fourth surface, the floor behind the lamp, and an image of its own on the floor
+    (the right way round) and on the left wall."""
     # The floor's image lies 23-57° below the light's horizon: with the tiny profile's 8 x 9
     # nodes a sector its projection scored r 0.15-0.20; with 16 x 17, 0.58-0.65.
     profile = tmp_path / "floor.toml"
@@ -189,7 +189,7 @@ def test_floor_and_per_wall_targets(tmp_path):
     ell[70:110, 10:40] = 255
     Image.fromarray(ell).save(tmp_path / "ell.png")
     run = make("verify", f"BUILD={tmp_path / 'b'}", "NAME=four", f"PROFILE={profile}",
-               f"TARGET_FLOOR={tmp_path / 'ell.png'}")
+               f"TARGET_FLOOR={tmp_path / 'ell.png'}", f"TARGET_LEFT={ROOT / 'examples' / 'star.png'}")
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     out = tmp_path / "b" / "four"
     design = json.loads((out / "design.json").read_text())
@@ -198,7 +198,10 @@ def test_floor_and_per_wall_targets(tmp_path):
     figures = json.loads((out / "verify.json").read_text())["figures"]["walls"]
     assert set(figures) == {"front", "left", "right", "floor"}
     prepared = json.loads((out / "prepare.json").read_text())["figures"]
-    assert prepared["floor_source"].endswith("ell.png") and prepared["front_source"].endswith("apple.png")
+    assert prepared["floor_source"].endswith("ell.png") and prepared["left_source"].endswith("star.png")
+    assert prepared["front_source"].endswith("apple.png") and prepared["right_source"].endswith("apple.png")
+    # Each wall shows its own image: swapped walls would put the apple on the star's wall.
+    assert min(figures[name]["pearson"] for name in ("front", "left", "right")) > 0.8
     from lampfab import artifacts, image, metrics
 
     light = np.load(out / "verify" / "floor.npz")["point"]
