@@ -34,7 +34,7 @@ lamp: $(B)/report.html
 	@$(PY) -m lampfab.cli summary $(ARGS)
 
 help:
-	@echo "make lamp TARGET=image.png [NAME=..] [PROFILE=draft|quick|default|fine|panel] [FAB=sla_resin|acrylic_cnc4|...]"
+	@echo "make lamp TARGET=image.png [NAME=..] [PROFILE=draft|quick|default|fine|floor|panel] [FAB=sla_resin|acrylic_cnc4|...]"
 	@echo "make lamp TEXT=\"Happy birthday\"      words instead of an image (build/text/)"
 	@echo "make lamp PANORAMA=examples/panorama.png   a 360° panorama wrapped around the room"
 	@echo "make <stage> TARGET=..   one stage and what it needs: prepare plan init optimize solid check export verify"

@@ -4,7 +4,7 @@ from lampfab import profile
 from lampfab.errors import LampfabError
 
 
-@pytest.mark.parametrize("name", ["draft", "quick", "default", "fine"])
+@pytest.mark.parametrize("name", ["draft", "quick", "default", "fine", "floor"])
 def test_bundled_design_profiles_load(name):
     d = profile.load_design(name)
     assert d.name == name and d.room.walls
