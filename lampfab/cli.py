@@ -75,11 +75,13 @@ def parser() -> argparse.ArgumentParser:
     return top
 
 
-def _per_wall(args: argparse.Namespace, with_default: bool = False) -> dict[str, str]:
-    out = {w: getattr(args, f"target_{w}") for w in WALLS if getattr(args, f"target_{w}")}
-    if with_default:
-        out["all"] = args.image
-    return out
+def _per_wall(args: argparse.Namespace) -> dict[str, str]:
+    return {w: getattr(args, f"target_{w}") for w in WALLS if getattr(args, f"target_{w}")}
+
+
+def _images(args: argparse.Namespace) -> dict[str, str]:
+    """Every input image by role, as ``pipeline.snapshot`` records them."""
+    return {**_per_wall(args), "all": args.image, "panorama": args.panorama}
 
 
 def run_stage(name: str, args: argparse.Namespace) -> None:
@@ -87,8 +89,7 @@ def run_stage(name: str, args: argparse.Namespace) -> None:
 
     build = pipeline.Build.open(args.out, args.profile, args.fab)
     if name == "settings":
-        images = {**_per_wall(args, with_default=True), "panorama": args.panorama}
-        pipeline.snapshot(build, build.path("settings.json"), images, args.text)
+        pipeline.snapshot(build, build.path("settings.json"), _images(args), args.text)
     elif name == "summary":
         pipeline.summary(build)
     else:
@@ -128,8 +129,7 @@ def _lamp(args: argparse.Namespace) -> None:
     out = Path(args.out or Path("build") / stem)
     build = pipeline.Build.open(out, args.profile, args.fab)
     # Reads every input first: a bad one stops here, before any stage writes a file.
-    pipeline.snapshot(build, build.path("settings.json"),
-                      {**_per_wall(args), "all": args.image, "panorama": args.panorama}, args.text)
+    pipeline.snapshot(build, build.path("settings.json"), _images(args), args.text)
     for name in pipeline.STAGES:
         t0 = time.time()
         _pipeline_stage(build, name, args)

@@ -597,13 +597,18 @@ def verify(build: Build) -> dict:
     design_path = build.path("design.json")
     report = build.begin("verify", {"design": design_path, "stl": build.path("lens.stl")})
     # Its parts take a minute together with nothing to print between them: a bar by part.
-    bar = tqdm(total=4, desc="verify", unit="part", dynamic_ncols=True,
+    parts = ["tracing the exported lens", "tolerance study", "the lamp's renders", "report.html"]
+    bar = tqdm(total=len(parts), desc="verify", unit="part", dynamic_ncols=True,
                bar_format="{desc}: {n}/{total} parts{postfix} [{elapsed}]")
-    bar.set_postfix_str("tracing the exported lens")
+
+    def begin(part: str) -> None:  # the parts before it are done
+        bar.update(parts.index(part) - bar.n)
+        bar.set_postfix_str(part)
+
+    begin("tracing the exported lens")
     figures = verify_mod.verify(design_path, build.path("verify"), v.image_px, v.photons,
                                 build.design.optimize.seed + 7, v.max_bounces)
-    bar.update()
-    bar.set_postfix_str("tolerance study")
+    begin("tolerance study")
     if build.path("optimize_render.npz").exists():
         agree = verify_mod.optimizer_agreement(build.path("verify"), build.path("optimize_render.npz"),
                                                list(figures["walls"]))
@@ -620,15 +625,13 @@ def verify(build: Build) -> dict:
         _log(f"verify: WARNING: the exported lens's render matches the optimizer's only to r "
              f"{figures['optimizer_match_min']:.3f} (< {OPTIMIZER_MATCH_R})")
     figures.update(_finishing(build))
-    bar.update()
-    bar.set_postfix_str("the lamp's renders")
+    begin("the lamp's renders")
     report.figure(**figures)
     pictures = _report_pictures(build)
-    bar.update()
-    bar.set_postfix_str("report.html")
+    begin("report.html")
     report.write(build.path("verify.json"))
     _write_report(build, figures, pictures, report_mod)
-    bar.update()
+    bar.update(len(parts) - bar.n)
     bar.close()
     return report.data
 

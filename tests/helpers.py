@@ -19,6 +19,17 @@ _MAKE_VARIABLES = ("TARGET", "TEXT", "PANORAMA", "NAME", "PROFILE", "FAB", "ALLO
                    "TARGET_FRONT", "TARGET_LEFT", "TARGET_RIGHT", "TARGET_FLOOR")
 
 
+def tiny_with(path: Path, lens: str = "", room_: str = "", replace: tuple = ()) -> Path:
+    """The tiny profile written to ``path`` with ``lens`` and ``room_`` lines added to
+    those tables and each (old, new) of ``replace`` applied (old must be there)."""
+    text = TINY.read_text()
+    for old, new in replace:
+        assert old in text, old
+        text = text.replace(old, new)
+    path.write_text(text.replace("[lens]\n", f"[lens]\n{lens}\n").replace("[room]\n", f"[room]\n{room_}\n"))
+    return path
+
+
 def make(*args) -> subprocess.CompletedProcess:
     """``make`` in the repository with ``args`` (targets and VAR=value), its output captured."""
     env = {k: v for k, v in os.environ.items() if k not in _MAKE_VARIABLES}

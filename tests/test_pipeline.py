@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from helpers import ROOT, TINY, make
+from helpers import ROOT, TINY, make, tiny_with
 
 
 @pytest.fixture(scope="module")
@@ -109,8 +109,7 @@ def test_rerun_is_a_no_op_and_profile_change_redoes_work(lamp, tmp_path):
     again = make("lamp", f"BUILD={build}", "NAME=apple", f"PROFILE={TINY}")
     assert again.returncode == 0 and "stages/" not in again.stdout
     copy = _copy_build(lamp, tmp_path)
-    changed = tmp_path / "tiny2.toml"
-    changed.write_text(TINY.read_text().replace("\nphotons = 50000", "\nphotons = 60000"))
+    changed = tiny_with(tmp_path / "tiny2.toml", replace=(("\nphotons = 50000", "\nphotons = 60000"),))
     plan = make("plan", f"BUILD={copy.parent}", "NAME=apple", f"PROFILE={changed}")
     assert plan.returncode == 0 and "stages/20_plan.py" in plan.stdout
 
@@ -179,11 +178,9 @@ def test_floor_and_per_wall_targets(tmp_path):
     (the right way round) and on the left wall."""
     # The floor's image lies 23-57° below the light's horizon: with the tiny profile's 8 x 9
     # nodes a sector its projection scored r 0.15-0.20; with 16 x 17, 0.58-0.65.
-    profile = tmp_path / "floor.toml"
-    profile.write_text(TINY.read_text().replace('walls = ["front", "left", "right"]',
-                                                'walls = ["front", "left", "right", "floor"]')
-                       .replace("grid_u = 32", "grid_u = 64").replace("grid_v = 9", "grid_v = 17")
-                       .replace("\nphotons = 50000", "\nphotons = 200000"))
+    profile = tiny_with(tmp_path / "floor.toml", replace=(
+        ('walls = ["front", "left", "right"]', 'walls = ["front", "left", "right", "floor"]'),
+        ("grid_u = 32", "grid_u = 64"), ("grid_v = 9", "grid_v = 17"), ("\nphotons = 50000", "\nphotons = 200000")))
     ell = np.zeros((120, 160), np.uint8)  # an L: mirrored or upside down, it scores far lower
     ell[10:70, 10:90] = 255
     ell[70:110, 10:40] = 255

@@ -20,7 +20,7 @@ from PIL import Image
 from lampfab import optimize, profile, resources, room, surface
 from lampfab.errors import LampfabError
 
-from helpers import ROOT, TINY, make
+from helpers import ROOT, TINY, make, tiny_with
 
 
 def files_under(folder: Path) -> list[Path]:
@@ -89,15 +89,6 @@ def _corrupt(path: Path) -> Path:
 
 def _inner_stl(path: Path, make_mesh) -> Path:
     make_mesh().export(path)
-    return path
-
-
-def _tiny_with(path: Path, lens: str = "", room_: str = "", replace: tuple = ()) -> Path:
-    text = TINY.read_text()
-    for old, new in replace:
-        assert old in text
-        text = text.replace(old, new)
-    path.write_text(text.replace("[lens]\n", f"[lens]\n{lens}\n").replace("[room]\n", f"[room]\n{room_}\n"))
     return path
 
 
@@ -190,7 +181,7 @@ def test_bad_profile_one_line_and_no_files(tmp_path, case):
     lens = spec.get("lens", "")
     if "inner" in spec:
         lens = f"inner_mesh = '{_inner_stl(tmp_path / 'inner.stl', spec['inner'])}'"
-    bad = _tiny_with(tmp_path / "bad profile é.toml", lens, spec.get("room_", ""), spec.get("replace", ()))
+    bad = tiny_with(tmp_path / "bad profile é.toml", lens, spec.get("room_", ""), spec.get("replace", ()))
     build = tmp_path / "build"
     run = make("prepare", f"BUILD={build}", "NAME=bad", f"PROFILE={bad}",
                f"TARGET={_png(tmp_path / 'disk.png', _disk())}")
@@ -408,7 +399,7 @@ def test_interrupted_runs_resume_to_the_same_bytes_as_an_uninterrupted_one(tmp_p
     """Two builds from scratch with one seed; the second is stopped by Ctrl-C (SIGINT),
     then SIGTERM, then killed with SIGKILL, and each time resumed.  Every artifact
     matches bit for bit."""
-    prof = _tiny_with(tmp_path / "resume.toml", replace=(("iterations = 2", "iterations = 24"),
+    prof = tiny_with(tmp_path / "resume.toml", replace=(("iterations = 2", "iterations = 24"),
                                                          ("preview_every = 1", "preview_every = 1000")))
     outs = []
     for name in ("straight", "stopped"):
