@@ -45,7 +45,8 @@ import numpy as np
 
 from . import tolerances
 from .checks_cnc import cavity_access, tool_axis, tool_axis_cells
-from .checks_geometry import SAMPLES, Fields, compute_fields
+from .checks_geometry import Fields, compute_fields
+from .curvature import SAMPLES
 from .checks_mesh import MeshReport, face_area_nz, inspect_mesh
 from .profile import Fabrication
 from .surface import Cylinder

@@ -15,17 +15,7 @@ import numpy as np
 
 from . import surface
 from .checks_distance import distance_to_mesh
-
-# The sample grid of the outer surface's checks (around, up): 0.35° and 0.35 mm apart on
-# the default lens, finer than any feature a printer or a mill makes.
-SAMPLES = (1024, 256)
-
-
-def sample_counts(grid: tuple[int, int], samples: tuple[int, int] = SAMPLES) -> tuple[int, int]:
-    """(mu, mv): ``samples`` raised to at least twice the node counts ``grid`` (nu, nv),
-    so that every spline cell is sampled inside, not only at its nodes."""
-    return max(samples[0], 2 * grid[0]), max(samples[1], 2 * grid[1])
-
+from .curvature import SAMPLES, concave_radius_of, sample_counts
 
 @dataclass
 class Fields:
@@ -161,31 +151,3 @@ def _settle_side(xyz: np.ndarray, dist: np.ndarray, side: np.ndarray, vertices: 
         inside = winding_number(vertices, faces, xyz[pick]) > 0.5
         out[cells] = -1.0 if inside else 1.0
     return out
-
-
-def fundamental_forms(r, r_u, r_z, r_uu, r_uz, r_zz) -> tuple[np.ndarray, ...]:
-    """(E, F, G, L, M, N): the first and second fundamental forms of the surface on the
-    sample grid, from the radius and its derivatives (``concave_radius_of`` has the
-    frame and the sign).  L / E and N / G are the normal curvatures along u and z."""
-    n_len = np.sqrt(r**2 + r_u**2 + (r * r_z) ** 2)
-    return (r_u**2 + r**2, r_u * r_z, r_z**2 + 1.0, ((r_uu - r) * r - 2 * r_u**2) / n_len,
-            (r_uz * r - r_z * r_u) / n_len, r_zz * r / n_len)
-
-
-def concave_radius_of(r, r_u, r_z, r_uu, r_uz, r_zz) -> np.ndarray:
-    """(mu, mv) mm: 1 / (largest principal curvature) where it is concave, inf elsewhere.
-
-    Fundamental forms of X(u, z) = r (cos u, sin u, 0) + (0, 0, z) with the outward unit
-    normal n.  In (e_r, e_theta, e_z): X_uu = (r_uu - r, 2 r_u, 0), X_uz = (r_uz, r_z, 0),
-    X_zz = (r_zz, 0, 0).  With n outward, a convex bulge (the plain cylinder: kappa = -1/r)
-    has negative normal curvature; positive curvature curves toward the outside, i.e. a
-    hollow that a ball of radius > 1/kappa cannot touch the bottom of.
-    """
-    E, F, G, L, M, N = fundamental_forms(r, r_u, r_z, r_uu, r_uz, r_zz)
-    det_i = E * G - F**2
-    mean = (E * N - 2 * F * M + G * L) / (2 * det_i)
-    gauss = (L * N - M**2) / det_i
-    k_max = mean + np.sqrt(np.maximum(mean**2 - gauss, 0.0))
-    with np.errstate(divide="ignore"):
-        # Curvatures below 1e-9 / mm are flat for any tool (radius > 1 km).
-        return np.where(k_max > 1e-9, 1.0 / np.maximum(k_max, 1e-300), np.inf)

@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import maximum_filter
 
-from . import checks_geometry, surface
+from . import surface
+from .curvature import concave_radius, fundamental_forms
 
 # The projection aims this share of the tool's radius wider than the tool: smoothing
 # stops at the first pass that clears it, and the spline between samples curves a little
@@ -40,14 +41,6 @@ SUPPORT_CELLS = 2
 # change, so a pass measures the hollows again only there (the passes took half of the
 # milled apple's optimize when they measured all of it).  The result is measured whole.
 REMEASURE_NODES = 12
-
-
-def concave_radius(cyl: surface.Cylinder, heights: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
-    """(mu, mv) mm: the smallest concave radius of curvature on the check's samples
-    (``checks_geometry.SAMPLES``), inf where the surface is convex; with ``rows`` (k,)
-    int, only those sample rows around ((k, mv))."""
-    mu, mv = checks_geometry.sample_counts(heights.shape)
-    return checks_geometry.concave_radius_of(*surface.radius_derivatives(cyl, heights, mu, mv, rows=rows))
 
 
 def limit_concavity(cyl: surface.Cylinder, heights: np.ndarray, tool_radius_mm: float,
@@ -109,7 +102,7 @@ def hollow_penalty(cyl: surface.Cylinder, heights: np.ndarray, max_curvature: fl
     mu, mv = surface.fine_shape(nu, nv, samples_per_cell)
     derivatives = surface.radius_derivatives(cyl, heights, mu, mv, order=2)
     r, r_u, r_z = derivatives[:3]
-    E, _, G, L, _, N = checks_geometry.fundamental_forms(*derivatives)
+    E, _, G, L, _, N = fundamental_forms(*derivatives)
     n_len = np.sqrt(r**2 + r_u**2 + (r * r_z) ** 2)
     excess_u = np.maximum(L / E - max_curvature, 0.0) / max_curvature
     excess_z = np.maximum(N / G - max_curvature, 0.0) / max_curvature

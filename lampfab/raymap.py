@@ -363,7 +363,7 @@ class RayMap:
                           r_z: np.ndarray) -> list[tuple[np.ndarray, sp.csr_matrix]]:
         """[(excess (n_fine,) 1/mm, its Jacobian)] of the hollow curvature along u and along z
         over the tool's limit (none without a tool).  Normal curvatures from the fundamental
-        forms as ``checks_geometry.concave_radius_of`` has them; the Jacobian keeps their
+        forms as ``curvature.concave_radius_of`` has them; the Jacobian keeps their
         second-derivative terms, which dominate where a hollow is tight."""
         if self.max_curvature is None:
             return []

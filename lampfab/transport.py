@@ -29,7 +29,8 @@ import scipy.sparse as sp
 from scipy.ndimage import map_coordinates
 from scipy.sparse.linalg import splu
 
-from . import checks_geometry, concavity, flow, ot, raymap, surface
+from . import concavity, flow, ot, raymap, surface
+from .curvature import SAMPLES
 from .room import SECTOR_WIDTH_DEG, Wall
 
 # The slope projection aims this far under the limit: the fabrication check samples the
@@ -414,7 +415,7 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     nu, nv = heights.shape
     # As finely as the check samples it (a creased spline can steepen within the last cell
     # before a seam), and at least 4 samples per cell.
-    k = max(4, -(-checks_geometry.SAMPLES[0] // nu))
+    k = max(4, -(-SAMPLES[0] // nu))
     fine = surface.fine_shape(nu, nv, k)
     # Aim a little under the limits: the check samples the spline at other points.
     max_tilt_deg -= SLOPE_MARGIN_DEG

@@ -136,7 +136,7 @@ def test_levels_are_four_times_finer_each():
 
 
 def test_splat_steps_keep_hollows_open_for_a_ball_end_tool(mi, tiny_design, inner_layer, tiny_setup):
-    from lampfab import concavity
+    from lampfab import curvature
 
     cyl, walls, targets = tiny_setup
     opt = dataclasses.replace(tiny_design.optimize, splat_photons=100_000, iterations=6, levels=1, learning_rate=0.2)
@@ -148,5 +148,5 @@ def test_splat_steps_keep_hollows_open_for_a_ball_end_tool(mi, tiny_design, inne
         state = optimize.State(np.zeros((opt.grid_u, opt.grid_v)), 0, 0)
         return method.run(state, lambda s: None, lambda s: None, lambda s, loss, msg: None).heights
 
-    assert concavity.concave_radius(cyl, run(0.0)).min() < tool_mm
-    assert concavity.concave_radius(cyl, run(tool_mm)).min() >= tool_mm
+    assert curvature.concave_radius(cyl, run(0.0)).min() < tool_mm
+    assert curvature.concave_radius(cyl, run(tool_mm)).min() >= tool_mm

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lampfab import checks_geometry, concavity, raymap, room, surface, trace, transport
+from lampfab import concavity, curvature, raymap, room, surface, trace, transport
 
 
 def _nominal(walls):
@@ -208,7 +208,7 @@ def test_slope_projection_meets_the_limit_and_keeps_gentle_parts(cyl, rng):
     heights += 0.3 * np.sin(2 * np.pi * 3 * u / nu) * np.cos(np.pi * z / (nv - 1))
     heights[10:14, 6:10] += 8.0
     # As finely as the fabrication check samples the spline, and the projection with it.
-    fine = surface.fine_shape(nu, nv, checks_geometry.SAMPLES[0] // nu)
+    fine = surface.fine_shape(nu, nv, curvature.SAMPLES[0] // nu)
     before = surface.slopes_deg(cyl, heights, *fine)[0].max()
     assert before > 45.0
     limited, tilt = transport.limit_slopes(cyl, heights, 45.0)
@@ -232,7 +232,7 @@ def test_slopes_that_add_up_to_the_tilt_are_projected_in_a_few_passes(cyl):
     # d ln r / du and dr/dz both 33°, over a patch 0.6 rad around and 40 mm up.
     radius = cyl.radius_mm * np.exp(slope * np.minimum(u, 0.6)) + slope * (np.clip(z, 20.0, 60.0) - 20.0)
     heights = radius - cyl.radius_mm
-    fine = surface.fine_shape(nu, nv, checks_geometry.SAMPLES[0] // nu)
+    fine = surface.fine_shape(nu, nv, curvature.SAMPLES[0] // nu)
     assert surface.slopes_deg(cyl, heights, *fine)[0].max() > 41.0
     limited, tilt = transport.limit_slopes(cyl, heights, 40.0, passes=4)
     assert tilt <= 40.0 - transport.SLOPE_MARGIN_DEG + 1e-9
@@ -271,7 +271,7 @@ def test_a_ball_end_tool_radius_keeps_hollows_open(inner_layer, default_design, 
         d = [surface.u_matrix(nu, 4 * nu, k) for k in range(3)]
         e = [surface.open_matrix(nv, 4 * (nv - 1) + 1, k) / cyl.height_mm**k for k in range(3)]
         part = [[a @ heights @ b.T for b in e] for a in d]     # part[i][j]: d^i/du^i d^j/dz^j
-        return float(checks_geometry.concave_radius_of(cyl.radius_mm + part[0][0], part[1][0], part[0][1],
+        return float(curvature.concave_radius_of(cyl.radius_mm + part[0][0], part[1][0], part[0][1],
                                                      part[2][0], part[1][1], part[0][2]).min())
 
     assert tightest(dimple) < 2.0
@@ -307,9 +307,9 @@ def _grooved(depth_mm: float) -> np.ndarray:
 def test_hollow_smoothing_opens_what_a_ball_end_tool_cannot_reach():
     cyl = surface.Cylinder(45.0, 90.0)
     heights = _grooved(2.0)
-    assert concavity.concave_radius(cyl, heights).min() < 3.0
+    assert curvature.concave_radius(cyl, heights).min() < 3.0
     smoothed, radius = concavity.limit_concavity(cyl, heights, 3.0)
-    assert radius >= 3.0 and np.isclose(radius, concavity.concave_radius(cyl, smoothed).min())
+    assert radius >= 3.0 and np.isclose(radius, curvature.concave_radius(cyl, smoothed).min())
     # Only the nodes around the groove move; the ripples elsewhere stay as they were.
     moved = np.any(smoothed != heights, axis=1)
     assert moved[60:63].all() and not moved[:45].any() and not moved[78:].any()
@@ -325,7 +325,7 @@ def test_hollow_smoothing_opens_a_groove_no_wider_than_the_tool_needs(monkeypatc
     goal = 3.0 * (1 + concavity.RADIUS_MARGIN)
     for depth in (1.0, 2.0):
         heights = _grooved(depth)
-        assert concavity.concave_radius(cyl, heights).min() < 3.0
+        assert curvature.concave_radius(cyl, heights).min() < 3.0
         adaptive, radius = concavity.limit_concavity(cyl, heights, 3.0)
         with monkeypatch.context() as m:
             m.setattr(concavity, "RATE_FLOOR", concavity.SMOOTHING)   # every flagged node half-way
@@ -357,4 +357,4 @@ def test_shape_limits_hold_together_after_projection():
     limited, tilt = transport.limit_shape(cyl, heights, 45.0, None, 3.0)
     fine = surface.fine_shape(64, 17, 4)
     assert surface.slopes_deg(cyl, limited, *fine)[0].max() <= 45.0 + 1e-6
-    assert concavity.concave_radius(cyl, limited).min() >= 3.0
+    assert curvature.concave_radius(cyl, limited).min() >= 3.0
