@@ -48,16 +48,9 @@ from .checks_cnc import cavity_access, tool_axis, tool_axis_cells
 from .checks_geometry import Fields, compute_fields
 from .curvature import SAMPLES
 from .checks_mesh import MeshReport, face_area_nz, inspect_mesh
+from .limits import OVERHANG_DEG, overhang_limit_deg
 from .profile import Fabrication
 from .surface import Cylinder
-
-# Printed upright, a surface leaning more than this past vertical (i.e. closer than 45 deg
-# to horizontal) faces down steeply enough to need supports.  Formlabs' own figure for
-# unsupported overhangs is >= 19 deg from level but only for overhangs <= 1 mm long
-# (as quoted by SLA service design guides); the lens's overhangs run for centimetres and
-# a support scar on an optical surface is a defect, so the common 45 deg rule is used.
-# A rule of the upright print, not a profile field: the design obeys it too.
-OVERHANG_DEG = 45.0
 
 # Formlabs' recommended minimum drain hole diameter (SLA design guides quoting it); the
 # bore is the cavity's only opening, so resin drains through it.
@@ -230,12 +223,6 @@ def overhang_cells(f: Fields, fab: Fabrication) -> np.ndarray:
     if limit is None:
         return np.zeros(f.wall.shape, bool)
     return f.overhang > limit + tolerances.ANGLE_TOL_DEG
-
-
-def overhang_limit_deg(fab: Fabrication) -> float | None:
-    """How far the outer surface may face down past vertical (a print, built in layers), or
-    None (a milled or ground part has no overhangs)."""
-    return OVERHANG_DEG if fab.process == "sla" else None
 
 
 def _overhang(f: Fields, fab: Fabrication) -> dict:

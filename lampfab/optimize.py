@@ -23,6 +23,7 @@ import numpy as np
 from . import lens, losses, scene, surface
 from .concavity import hollow_penalty
 from .errors import LampfabError
+from .limits import Limits
 from .profile import Optimize
 from .room import Wall
 
@@ -148,8 +149,7 @@ class Optimizer:
 
     def __init__(self, cyl: surface.Cylinder, inner_vertices: np.ndarray, inner_faces: np.ndarray,
                  light_mm: np.ndarray, ior: float, walls: list[Wall], targets: list[np.ndarray],
-                 opt: Optimize, max_offset_mm: float, max_tilt_deg: float, max_overhang_deg: float | None = None,
-                 tool_radius_mm: float = 0.0):
+                 opt: Optimize, limits: Limits):
         if opt.backtrack and opt.schedule != "joint":
             # One view per step: consecutive losses are of different walls, and every
             # step would look like a rise (the profile loader refuses this too).
@@ -158,10 +158,7 @@ class Optimizer:
         self.light, self.ior, self.walls, self.opt = light_mm, ior, walls, opt
         self.targets = [np.asarray(t, np.float64) for t in targets]
         self.shapes = [t.shape for t in self.targets]
-        self.max_offset = max_offset_mm
-        self.max_tilt = max_tilt_deg
-        self.max_overhang = max_overhang_deg
-        self.tool_radius = tool_radius_mm
+        self.limits = limits
         self._scene_grid = None
 
     def gradient(self, heights: np.ndarray, views: list[int], seed: int) -> tuple[float, np.ndarray]:
@@ -185,11 +182,7 @@ class Optimizer:
         result undid much of the refinement: the horse's r 0.966-0.970 exact against
         0.946-0.958, the 3-axis milled apple's 0.920-0.938 against 0.855-0.873
         (bench/RESULTS.md)."""
-        from .transport import limit_shape
-
-        heights = np.clip(heights, -self.max_offset, self.max_offset)
-        heights, _ = limit_shape(self.cyl, heights, self.max_tilt, self.max_overhang, self.tool_radius)
-        return np.clip(heights, -self.max_offset, self.max_offset)
+        return self.limits.project(self.cyl, heights)
 
     # -- loop ---------------------------------------------------------------------
     def step_delta(self, state: State, grad: np.ndarray) -> np.ndarray:
@@ -262,14 +255,15 @@ class Optimizer:
                 views = losses.views_for_step(opt.schedule, state.step, len(self.walls))
                 key = views[0] if len(views) == 1 else -1
                 loss, grad_full = self.gradient(state.heights, views, seed=opt.seed * 100_003 + state.step * 17)
+                limits = self.limits
                 penalty, penalty_grad = surface.slope_penalty(
-                    self.cyl, state.heights, self.max_tilt - PENALTY_MARGIN_DEG,
-                    None if self.max_overhang is None else self.max_overhang - PENALTY_MARGIN_DEG)
+                    self.cyl, state.heights, limits.max_slope_deg - PENALTY_MARGIN_DEG,
+                    None if limits.max_overhang_deg is None else limits.max_overhang_deg - PENALTY_MARGIN_DEG)
                 loss += opt.slope_weight * penalty
                 grad_full = grad_full + opt.slope_weight * penalty_grad
-                if self.tool_radius > 0:
+                if limits.tool_radius_mm > 0:
                     penalty, penalty_grad = hollow_penalty(self.cyl, state.heights,
-                                                           1.0 / (HOLLOW_PENALTY_MARGIN * self.tool_radius))
+                                                           1.0 / (HOLLOW_PENALTY_MARGIN * limits.tool_radius_mm))
                     loss += opt.hollow_weight * penalty
                     grad_full = grad_full + opt.hollow_weight * penalty_grad
                 grad = surface.sample_adjoint(self.cyl, grad_full, *grid)

@@ -26,7 +26,8 @@ from scipy.sparse.linalg import splu
 
 from . import ot, panel
 from .room import Wall
-from .transport import SLOPE_MARGIN_DEG, snell_normals
+from .limits import SLOPE_MARGIN_DEG
+from .transport import snell_normals
 
 # The beam's direction inside the glass: collimated, at normal incidence on the back face.
 AXIS = np.array([0.0, 1.0, 0.0])

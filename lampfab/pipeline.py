@@ -42,10 +42,11 @@ class Build:
                                 self.fab.sector_creases)
 
     @property
-    def max_overhang_deg(self) -> float | None:
-        from .checks import overhang_limit_deg
+    def limits(self):
+        """What the outer surface may do (``limits.Limits``), from both profiles."""
+        from .limits import Limits
 
-        return overhang_limit_deg(self.fab)
+        return Limits.of(self.design, self.fab)
 
     @property
     def light(self) -> np.ndarray:
@@ -75,12 +76,8 @@ class Build:
         with the ``[optimize]`` settings ``opt``; ``progress``: log, on_step, on_pass."""
         from . import transport
 
-        return transport.design(
-            self.cylinder, self.walls, self.targets(opt.sensor_px), *inner, self.light, self.fab.ior,
-            (opt.grid_u, opt.grid_v), opt.tessellation, opt.transport_rounds, opt.transport_photons,
-            opt.smoothness, self.design.lens.max_offset_mm, self.fab.max_slope_deg, opt.seed,
-            corrections=opt.transport_corrections, dump_share=opt.dump_share,
-            tool_radius_mm=self.fab.tool_radius_mm, max_overhang_deg=self.max_overhang_deg, **progress)
+        return transport.design(self.cylinder, self.walls, self.targets(opt.sensor_px), *inner, self.light,
+                                self.fab.ior, self.limits, opt, **progress)
 
     def optimizer(self, opt, inner, targets):
         """The refinement ``opt.method`` names, for this build's lens, room, light and
@@ -89,9 +86,7 @@ class Build:
         from .splat import SplatOptimizer
 
         method = {"seed": optimize.SeedOptimizer, "splat": SplatOptimizer}[opt.method]
-        return method(self.cylinder, *inner, self.light, self.fab.ior, self.walls, targets, opt,
-                      self.design.lens.max_offset_mm, self.fab.max_slope_deg, self.max_overhang_deg,
-                      self.fab.tool_radius_mm)
+        return method(self.cylinder, *inner, self.light, self.fab.ior, self.walls, targets, opt, self.limits)
 
     def inner(self):
         from . import inner

@@ -26,6 +26,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
 from . import surface
+from .limits import Limits
 from .room import Wall
 from .tolerances import RAY_EPSILON_MM
 
@@ -34,7 +35,7 @@ from .tolerances import RAY_EPSILON_MM
 DIFF_STEP_MM = 1e-3
 
 # The slope term aims this far under the fabrication limit: the check samples the spline
-# at other points than the fit, and the final projection (transport.limit_shape) then
+# at other points than the fit, and the final projection (limits.limit_shape) then
 # has little to do.
 SLOPE_MARGIN_DEG = 1.0
 
@@ -236,17 +237,17 @@ class RayMap:
     """Fits the outer surface to per-photon goals (see the module docstring)."""
 
     def __init__(self, cyl: surface.Cylinder, tessellation: int, photons: Photons, walls: list[Wall],
-                 wall_of: np.ndarray, ior: float, max_tilt_deg: float, max_offset_mm: float,
-                 smoothness: float, tool_radius_mm: float = 0.0, max_overhang_deg: float | None = None):
+                 wall_of: np.ndarray, ior: float, limits: Limits, smoothness: float):
         self.cyl, self.tessellation, self.photons = cyl, tessellation, photons
         self.frames = WallFrames(walls)
         self.wall_of = wall_of
         self.ior = ior
-        self.tan_limit = np.tan(np.radians(max_tilt_deg - SLOPE_MARGIN_DEG))
-        self.max_offset = max_offset_mm
+        self.tan_limit = np.tan(np.radians(limits.max_slope_deg - SLOPE_MARGIN_DEG))
+        self.max_offset = limits.max_offset_mm
         self.smoothness = smoothness
-        self.max_curvature = 1.0 / (CURVATURE_MARGIN * tool_radius_mm) if tool_radius_mm > 0 else None
-        self.sin_overhang = None if max_overhang_deg is None else np.sin(np.radians(max_overhang_deg - SLOPE_MARGIN_DEG))
+        tool, overhang = limits.tool_radius_mm, limits.max_overhang_deg
+        self.max_curvature = 1.0 / (CURVATURE_MARGIN * tool) if tool > 0 else None
+        self.sin_overhang = None if overhang is None else np.sin(np.radians(overhang - SLOPE_MARGIN_DEG))
         self._grids: dict = {}
 
     def grid(self, shape: tuple[int, int]) -> _Grid:

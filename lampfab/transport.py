@@ -15,47 +15,21 @@ that lands it there.
    (``flow``), and refit: this is what makes dark parts dark, since a field of goals that
    no surface realizes exactly leaves light where the first fit put it.
 
-Finally the surface is projected under the fabrication limits (``limit_shape``): slopes,
-overhangs, and hollows a ball-end tool can reach.
+Finally the surface is projected under the fabrication limits (``limits.limit_shape``):
+slopes, overhangs, and hollows a ball-end tool can reach.
 """
 
 from __future__ import annotations
 
 import warnings
-from functools import lru_cache
 
 import numpy as np
-import scipy.sparse as sp
 from scipy.ndimage import map_coordinates
-from scipy.sparse.linalg import splu
 
-from . import concavity, flow, ot, raymap, surface
-from .curvature import SAMPLES
+from . import flow, ot, raymap, surface
+from .limits import Limits, limit_shape
+from .profile import Optimize
 from .room import SECTOR_WIDTH_DEG, Wall
-
-# The slope projection aims this far under the limit: the fabrication check samples the
-# spline at other points than the projection does.
-SLOPE_MARGIN_DEG = 0.2
-
-# Where the spline overshoots a limit, the slope projection cuts the steep edges around
-# that place from their own slope, not from their clamp: edges within this much of their
-# clamp count as steep.  An overshoot often sits where slopes along u and z add up to the
-# tilt, or where the spline bends past its node-to-node slopes, with every edge well under
-# its clamp; tightening the clamps 0.5° a pass from the limit took ~20 passes to reach
-# them (the 3-axis milled apple: 23.6 passes per call, 3.8 this way).  Cutting every edge
-# around an overshoot instead moved the surface 46 % further than that old rule, the
-# edges within 20° 35 %, within 10° 19 % (bench/RESULTS.md, "The slope projection in a
-# few passes").
-STEEP_EDGE_DEG = 10.0
-
-# The least a clamp tightens per pass where the spline still overshoots: with a quarter
-# degree the projection moved the surface 4 % less than the old rule, with half a degree
-# 19 % more, in about as many passes.
-CLAMP_STEP_DEG = 0.25
-
-# Rounds of hollow smoothing and slope projection in turn (``limit_shape``).  On every lens
-# measured the first round left both within their limits.
-SHAPE_ROUNDS = 3
 
 # Photon strata around the lens per heightmap node: four photons cross each node column.
 AZIMUTH_STRATA_PER_NODE = 4
@@ -95,30 +69,28 @@ FLOW_SUBSTEPS = 4
 
 
 def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
-           inner_vertices: np.ndarray, inner_faces: np.ndarray, light_mm: np.ndarray,
-           ior: float, grid: tuple[int, int], tessellation: int, iterations: int, photons: int,
-           smoothness: float, max_offset_mm: float, max_tilt_deg: float, seed: int,
-           corrections: int = 3, dump_share: float = 0.1, tool_radius_mm: float = 0.0,
-           max_overhang_deg: float | None = None, log=print, on_step=None,
-           on_pass=None) -> tuple[np.ndarray, dict]:
-    """The transport-based heightmap on a ``grid`` = (nu, nv) node grid.
+           inner_vertices: np.ndarray, inner_faces: np.ndarray, light_mm: np.ndarray, ior: float,
+           limits: Limits, opt: Optimize, log=print, on_step=None, on_pass=None) -> tuple[np.ndarray, dict]:
+    """The transport-based heightmap within ``limits``, on the (grid_u, grid_v) node grid
+    of ``opt`` (the ``[optimize]`` settings).
 
-    targets: per wall (rows, cols) linear luminance.  ``iterations`` Levenberg-Marquardt
-    steps per fit (twice that on the coarse grid), ``corrections`` trace-and-refit passes.
-    A ``tool_radius_mm`` (ball-end mill) bounds how tightly the surface may curve hollow,
-    ``max_overhang_deg`` (a print) how far it may face down past vertical.
+    targets: per wall (rows, cols) linear luminance.  From ``opt``: ``transport_photons``
+    traced from the light (``seed``), ``transport_rounds`` Levenberg-Marquardt steps per
+    fit (twice that on the coarse grid) with the ``smoothness`` penalty on the
+    ``tessellation``'s facets, ``transport_corrections`` trace-and-refit passes,
+    ``dump_share`` of the light in the bands beside each image.
     ``on_step(figures)`` follows every fitting step (``fit_steps`` of them: a progress bar),
     ``on_pass(heights)`` sees the (nu, nv) surface after every fit (the benchmark times them).
     Returns ((nu, nv) mm offsets, figures).
     """
+    grid, iterations, dump_share = (opt.grid_u, opt.grid_v), opt.transport_rounds, opt.dump_share
     nu, nv = grid
     n_azimuth = AZIMUTH_STRATA_PER_NODE * nu
-    n_elevation = max(photons // n_azimuth, 8 * CELL_STRATA)
-    ph = raymap.stratified_photons(inner_vertices, inner_faces, light_mm, ior, n_azimuth, n_elevation, seed)
+    n_elevation = max(opt.transport_photons // n_azimuth, 8 * CELL_STRATA)
+    ph = raymap.stratified_photons(inner_vertices, inner_faces, light_mm, ior, n_azimuth, n_elevation, opt.seed)
     spans = sector_spans(walls, targets, light_mm)
-    wall_of = sector_of(ph.emitted, walls, spans, light_mm, ior, max_tilt_deg)
-    fitter = raymap.RayMap(cyl, tessellation, ph, walls, wall_of, ior, max_tilt_deg, max_offset_mm, smoothness,
-                           tool_radius_mm, max_overhang_deg)
+    wall_of = sector_of(ph.emitted, walls, spans, light_mm, ior, limits.max_slope_deg)
+    fitter = raymap.RayMap(cyl, opt.tessellation, ph, walls, wall_of, ior, limits, opt.smoothness)
     coarse = coarse_grid(grid)
     plain = fitter.trace(np.zeros(coarse))
     lit = np.zeros(len(wall_of), bool)
@@ -137,16 +109,18 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     heights, fit = fitter.fit(heights, goals, iterations, on_step)
     figures["passes"].append(fit)
     report(heights)
+    corrections = opt.transport_corrections
     for k in range(corrections):
         goals, landed_error = landing_goals(fitter.trace(heights), wall_of, walls, targets, dump_share)
         heights, fit = fitter.fit(heights, goals, iterations, on_step)
         figures["passes"].append({**fit, "landed_density_error": landed_error})
         report(heights)
         log(f"transport: correction {k + 1}/{corrections}: landing error {fit['rms_landing_error_mm']:.1f} mm rms")
-    heights, max_tilt = limit_shape(cyl, np.clip(heights, -max_offset_mm, max_offset_mm), max_tilt_deg,
-                                    max_overhang_deg, tool_radius_mm)
-    clipped = float(np.mean(np.abs(heights) > max_offset_mm))
-    heights = np.clip(heights, -max_offset_mm, max_offset_mm)
+    bound = limits.max_offset_mm
+    heights, max_tilt = limit_shape(cyl, np.clip(heights, -bound, bound), limits.max_slope_deg,
+                                    limits.max_overhang_deg, limits.tool_radius_mm)
+    clipped = float(np.mean(np.abs(heights) > bound))
+    heights = np.clip(heights, -bound, bound)
     figures.update(offset_min_mm=float(heights.min()), offset_max_mm=float(heights.max()),
                    clipped_fraction=clipped, grid=list(grid), max_tilt_deg=max_tilt, creased=cyl.creased)
     return heights, figures
@@ -374,145 +348,6 @@ def snell_normals(d_in: np.ndarray, d_out: np.ndarray, ior: float) -> np.ndarray
     """
     n = ior * d_in - d_out
     return n / np.linalg.norm(n, axis=-1, keepdims=True)
-
-
-def limit_shape(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float,
-                max_overhang_deg: float | None = None, tool_radius_mm: float = 0.0) -> tuple[np.ndarray, float]:
-    """``limit_slopes``, then ``concavity.limit_concavity`` for a ball-end tool of
-    ``tool_radius_mm`` (0: none) and ``limit_slopes`` again, in turn until neither changes
-    the surface: smoothing a hollow can steepen its rim, and the slope projection can make
-    a new hollow.  The slopes are always projected last.
-    Returns (heights (nu, nv) mm, max tilt deg)."""
-    heights, max_tilt = limit_slopes(cyl, heights, max_tilt_deg, max_overhang_deg)
-    if tool_radius_mm <= 0:
-        return heights, max_tilt
-    for _ in range(SHAPE_ROUNDS):
-        smoothed, _ = concavity.limit_concavity(cyl, heights, tool_radius_mm)
-        if np.array_equal(smoothed, heights):
-            break
-        # Smoothing leaves no hollow too tight; if the slopes hold too, both do.
-        heights, max_tilt = limit_slopes(cyl, smoothed, max_tilt_deg, max_overhang_deg)
-        if np.array_equal(heights, smoothed):
-            break
-    return heights, max_tilt
-
-
-def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float,
-                 max_overhang_deg: float | None = None, passes: int = 60) -> tuple[np.ndarray, float]:
-    """The surface closest to ``heights`` whose spline tilts at most ``max_tilt_deg``
-    against the radial direction and, with ``max_overhang_deg`` (a print), faces down at
-    most that far past vertical, measured as finely as the fabrication check does.
-
-    Node-to-node slopes steeper than a clamp are cut back to it, and only that
-    correction is integrated (least squares), so detail elsewhere is kept.  Where the
-    spline still overshoots between nodes (or at the caps, where its end condition
-    bends it), the clamps of the steep edges around that place drop to the edges' own
-    slopes less the overshoot (at least ``CLAMP_STEP_DEG``) per pass; elsewhere they stay
-    just under the limit.  The overhang bounds how fast the radius may grow upward
-    (atan(dr/dz), never less than the overhang).
-    Returns (heights (nu, nv) mm, max tilt deg).
-    """
-    nu, nv = heights.shape
-    # As finely as the check samples it (a creased spline can steepen within the last cell
-    # before a seam), and at least 4 samples per cell.
-    k = max(4, -(-SAMPLES[0] // nu))
-    fine = surface.fine_shape(nu, nv, k)
-    # Aim a little under the limits: the check samples the spline at other points.
-    max_tilt_deg -= SLOPE_MARGIN_DEG
-    max_rise_deg = 90.0 if max_overhang_deg is None else max_overhang_deg - SLOPE_MARGIN_DEG
-
-    def overshoot():
-        r, r_u, r_z = surface.radius_derivatives(cyl, heights, *fine, order=1)
-        tan_tilt = surface.tilt_tangent(r, r_u, r_z)
-        return (float(np.degrees(np.arctan(tan_tilt.max()))), _overshoot_deg(tan_tilt, max_tilt_deg),
-                _overshoot_deg(r_z, max_rise_deg))
-
-    max_tilt, over_tilt, over_rise = overshoot()
-    if over_tilt.max() <= 0 and over_rise.max() <= 0:
-        return heights, max_tilt
-    du = 2 * np.pi / nu
-    dz = cyl.height_mm / (nv - 1)
-    a, b, diff, normal_eq = _edge_system(nu, nv)
-    m = len(a)
-    along_z = np.arange(m) >= nu * nv
-    scale = np.concatenate([np.full(nu * nv, du), np.full(nu * (nv - 1), dz)])
-    clamp = np.full(m, max_tilt_deg - 0.5)
-    rise_clamp = np.where(along_z, min(max_rise_deg, max_tilt_deg) - 0.5, 89.0)
-
-    def edge_tangents():
-        # Along u, d ln r / du = (dr/du) / r; along z, dr/dz.  Returns them and r per edge.
-        r_edge = np.concatenate([np.full(nu * nv, 1.0), (cyl.radius_mm + heights[:, 1:]).ravel()])
-        return diff @ np.log(cyl.radius_mm + heights).ravel() / scale * r_edge, r_edge
-
-    def tighten(clamps, over_field, edge_tangent):
-        # How far each node's neighbourhood (one cell around) overshoots its limit.
-        over = _around_nodes_max(over_field, k).ravel()
-        over_edge = np.maximum(over[a], over[b])
-        hit = np.flatnonzero(over_edge > 0)
-        # The edges' slopes (deg) only there: arctan for the few, not every edge.
-        edge_deg = np.degrees(np.arctan(edge_tangent[hit]))
-        steep = edge_deg > clamps[hit] - STEEP_EDGE_DEG
-        clamps[hit[steep]] = np.minimum(clamps[hit[steep]], edge_deg[steep])
-        clamps[hit] -= np.maximum(CLAMP_STEP_DEG, over_edge[hit])
-
-    tangent, r_edge = edge_tangents()
-    for _ in range(passes):
-        limit = np.tan(np.radians(clamp))
-        upper = np.minimum(limit, np.tan(np.radians(rise_clamp)))
-        excess = np.maximum(tangent - upper, 0.0) + np.minimum(tangent + limit, 0.0)
-        delta = normal_eq.solve(diff.T @ (-excess / r_edge * scale))
-        heights = (cyl.radius_mm + heights) * np.exp(delta.reshape(nu, nv) - delta.mean()) - cyl.radius_mm
-        max_tilt, over_tilt, over_rise = overshoot()
-        if over_tilt.max() <= 0 and over_rise.max() <= 0:
-            break
-        tangent, r_edge = edge_tangents()
-        tighten(clamp, over_tilt, np.abs(tangent))
-        tighten(rise_clamp, np.where(np.isfinite(over_rise), over_rise, -1.0), tangent)
-        rise_clamp[~along_z] = 89.0
-    return heights, max_tilt
-
-
-def _overshoot_deg(tangent: np.ndarray, limit_deg: float) -> np.ndarray:
-    """How far atan(tangent) exceeds ``limit_deg`` (deg) where it does, -1 elsewhere (only
-    the overshoots count): arctan for the few samples near the limit, not for millions."""
-    over = np.full(tangent.shape, -1.0)
-    # A hair under the limit's tangent, so that rounding cannot drop a sample that overshoots.
-    near = tangent > np.tan(np.radians(limit_deg)) * (1.0 - 1e-9)
-    over[near] = np.degrees(np.arctan(tangent[near])) - limit_deg
-    return over
-
-
-def _around_nodes_max(field: np.ndarray, k: int) -> np.ndarray:
-    """(nu, nv): the largest value of ``field`` (nu*k, (nv-1)*k + 1) samples, k per node
-    cell, within one cell of each node (periodic around u, clipped at the ends of z).
-
-    ``maximum_filter(field, 2k + 1, mode=("wrap", "nearest"))[::k, ::k]`` without
-    filtering every sample: from the maxima of the cells on either side of each node and
-    the sample one cell beyond it."""
-    mu, mv = field.shape
-    nu, nv = mu // k, (mv - 1) // k + 1
-    cells = field.reshape(nu, k, mv).max(axis=1)            # cell i: samples i*k .. i*k + k - 1
-    node_rows = field[::k]
-    around_u = np.maximum(np.maximum(np.roll(cells, 1, axis=0), cells), np.roll(node_rows, -1, axis=0))
-    cells = around_u[:, :-1].reshape(nu, nv - 1, k).max(axis=2)
-    out = around_u[:, ::k].copy()                           # the node's own sample
-    out[:, 1:] = np.maximum(out[:, 1:], cells)              # the cell below it
-    out[:, :-1] = np.maximum(np.maximum(out[:, :-1], cells), around_u[:, k::k])  # the cell above, its top sample
-    return out
-
-
-@lru_cache(maxsize=8)
-def _edge_system(nu: int, nv: int):
-    """The node grid's edges for ``limit_slopes``: (first nodes (m,), second nodes (m,),
-    differences along them (m, nu*nv), LU of their normal equations).  Edges run around
-    (periodic) then up.  The same for every pass and every call on a grid, so built once."""
-    idx = np.arange(nu * nv).reshape(nu, nv)
-    a = np.concatenate([idx.ravel(), idx[:, 1:].ravel()])
-    b = np.concatenate([np.roll(idx, 1, axis=0).ravel(), idx[:, :-1].ravel()])
-    m = len(a)
-    diff = sp.csr_matrix((np.concatenate([np.ones(m), -np.ones(m)]),
-                          (np.concatenate([np.arange(m)] * 2), np.concatenate([a, b]))), shape=(m, nu * nv))
-    return a, b, diff, splu((diff.T @ diff + sp.identity(nu * nv) * 1e-9).tocsc())
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

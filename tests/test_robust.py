@@ -19,6 +19,7 @@ from PIL import Image
 
 from lampfab import optimize, profile, resources, room, surface
 from lampfab.errors import LampfabError
+from lampfab.limits import Limits
 
 from helpers import ROOT, TINY, make, tiny_with
 
@@ -243,7 +244,8 @@ class Quadratic(optimize.Optimizer):
 
     def __init__(self, design, faults, **changes):
         opt = dataclasses.replace(design.optimize, **{"levels": 1, "step": "gd", "learning_rate": 0.1, **changes})
-        super().__init__(surface.Cylinder(45.0, 90.0), None, None, None, 1.49, room.walls(design), [], opt, 20.0, 45.0)
+        super().__init__(surface.Cylinder(45.0, 90.0), None, None, None, 1.49, room.walls(design), [], opt,
+                         Limits(20.0, 45.0))
         self.faults, self.calls = faults, 0
 
     def gradient(self, heights, views, seed):
@@ -380,7 +382,7 @@ def test_splat_gradient_is_bit_reproducible(mi, tiny_design, inner_layer):
     for _ in range(2):
         opt = splat.SplatOptimizer(surface.Cylinder(45.0, 90.0), *inner_layer, room.light_position(tiny_design), 1.49,
                                    walls, targets, dataclasses.replace(tiny_design.optimize, splat_photons=100_000),
-                                   20.0, 45.0)
+                                   Limits(20.0, 45.0))
         results.append(opt.gradient(h, [0, 1, 2], seed=11))
     assert results[0][0] == results[1][0] and np.abs(results[0][1]).max() > 0
     assert results[0][1].tobytes() == results[1][1].tobytes()

@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from lampfab import concavity, curvature, raymap, room, surface, trace, transport
+from lampfab import concavity, curvature, limits, raymap, room, surface, trace, transport
+from lampfab.limits import Limits
+from lampfab.profile import Optimize
 
 
 def _nominal(walls):
@@ -36,7 +38,7 @@ def test_landing_agrees_with_the_photon_tracer(mi, photons, default_design, cyl)
     """Where raymap says a photon lands is the pixel Mitsuba's tracer puts it in."""
     walls = room.walls(default_design)
     wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
-    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, 45.0, 20.0, 1e-2)
+    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, Limits(20.0, 45.0), 1e-2)
     rng = np.random.default_rng(0)
     heights = 2.0 * rng.standard_normal((32, 9))
     land = fitter.trace(heights)
@@ -68,7 +70,7 @@ def test_fit_finds_a_surface_that_lands_photons_at_its_goals(photons, default_de
     cyl = surface.Cylinder(cyl.radius_mm, cyl.height_mm, creased)
     walls = room.walls(default_design)
     wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
-    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, 45.0, 20.0, 1e-4)
+    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, Limits(20.0, 45.0), 1e-4)
     u = cyl.node_u(32)[:, None]
     z = cyl.node_z(9)[None, :]
     truth = 3.0 * np.sin(3 * u) * np.cos(np.pi * z / cyl.height_mm) + 0.02 * (z - 45.0)
@@ -91,7 +93,7 @@ def test_a_photon_without_a_landing_derivative_steers_nothing(photons, default_d
     that photon out instead of turning NaN."""
     walls = room.walls(default_design)
     wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
-    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, 45.0, 20.0, 1e-4)
+    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, Limits(20.0, 45.0), 1e-4)
     heights = np.zeros((32, 9))
     grid = fitter.grid(heights.shape)
     goals = np.zeros((len(wall_of), 2))
@@ -182,8 +184,10 @@ def test_transport_alone_projects_the_target(tiny_design, inner_layer):
         yy, xx = np.mgrid[:rows, :cols]
         targets.append(((xx - cols / 2 + 0.5) ** 2 + (yy - rows / 2 + 0.5) ** 2 < (0.35 * rows) ** 2).astype(float))
     cyl = surface.Cylinder(45.0, 90.0, creased=True)
-    heights, figures = transport.design(cyl, walls, targets, *inner_layer, light, 1.5, (32, 9), 2, 3, 60_000,
-                                        1e-2, 20.0, 45.0, seed=0, corrections=2, dump_share=0.1, log=lambda m: None)
+    opt = Optimize(grid_u=32, grid_v=9, tessellation=2, transport_rounds=3, transport_photons=60_000,
+                   smoothness=1e-2, seed=0, transport_corrections=2, dump_share=0.1)
+    heights, figures = transport.design(cyl, walls, targets, *inner_layer, light, 1.5, Limits(20.0, 45.0), opt,
+                                        log=lambda m: None)
     # Each correction pass starts from light that lands closer to the target than before.
     first, second = (p["landed_density_error"] for p in figures["passes"][1:])
     assert all(second[w.name] < first[w.name] for w in walls)
@@ -211,9 +215,9 @@ def test_slope_projection_meets_the_limit_and_keeps_gentle_parts(cyl, rng):
     fine = surface.fine_shape(nu, nv, curvature.SAMPLES[0] // nu)
     before = surface.slopes_deg(cyl, heights, *fine)[0].max()
     assert before > 45.0
-    limited, tilt = transport.limit_slopes(cyl, heights, 45.0)
+    limited, tilt = limits.limit_slopes(cyl, heights, 45.0)
     after = surface.slopes_deg(cyl, limited, *fine)[0].max()
-    assert after <= 45.0 - transport.SLOPE_MARGIN_DEG + 1e-9
+    assert after <= 45.0 - limits.SLOPE_MARGIN_DEG + 1e-9
     assert np.isclose(tilt, after)
     # Far from the bump the ripples survive almost unchanged.
     far = np.abs(limited - heights)[40:60]
@@ -234,8 +238,8 @@ def test_slopes_that_add_up_to_the_tilt_are_projected_in_a_few_passes(cyl):
     heights = radius - cyl.radius_mm
     fine = surface.fine_shape(nu, nv, curvature.SAMPLES[0] // nu)
     assert surface.slopes_deg(cyl, heights, *fine)[0].max() > 41.0
-    limited, tilt = transport.limit_slopes(cyl, heights, 40.0, passes=4)
-    assert tilt <= 40.0 - transport.SLOPE_MARGIN_DEG + 1e-9
+    limited, tilt = limits.limit_slopes(cyl, heights, 40.0, passes=4)
+    assert tilt <= 40.0 - limits.SLOPE_MARGIN_DEG + 1e-9
 
 
 @pytest.mark.parametrize("nu, nv, k", [(64, 17, 16), (8, 3, 5), (6, 2, 1)])
@@ -246,7 +250,7 @@ def test_the_overshoot_around_each_node_is_the_filtered_maximum(rng, nu, nv, k):
 
     field = rng.standard_normal((nu * k, (nv - 1) * k + 1))
     expected = maximum_filter(field, size=2 * k + 1, mode=("wrap", "nearest"))[::k, ::k]
-    assert np.array_equal(transport._around_nodes_max(field, k), expected)
+    assert np.array_equal(limits._around_nodes_max(field, k), expected)
 
 
 @pytest.mark.slow
@@ -261,7 +265,7 @@ def test_a_ball_end_tool_radius_keeps_hollows_open(inner_layer, default_design, 
     dimple[32, 16] = -2.0                                    # a hollow in front, a node wide
 
     def fitter(tool):
-        return raymap.RayMap(cyl, 2, dense, walls, wall_of, 1.5, 45.0, 20.0, 1e-4, tool_radius_mm=tool)
+        return raymap.RayMap(cyl, 2, dense, walls, wall_of, 1.5, Limits(20.0, 45.0, tool_radius_mm=tool), 1e-4)
 
     land = fitter(0.0).trace(dimple)
     goals = np.full((len(wall_of), 2), np.nan)
@@ -288,7 +292,7 @@ def test_a_print_may_face_up_steeply_but_not_down(cyl):
     heights = np.tile(np.concatenate([[0.0], ramp[1:]])[None, :], (64, 1)) - 5.0
     fine = surface.fine_shape(64, 17, 16)
     for sign in (+1, -1):
-        limited, _ = transport.limit_slopes(cyl, sign * heights, 60.0, max_overhang_deg=45.0)
+        limited, _ = limits.limit_slopes(cyl, sign * heights, 60.0, max_overhang_deg=45.0)
         tilt, rise = surface.slopes_deg(cyl, limited, *fine)
         assert tilt.max() <= 60.0 and rise.max() <= 45.0 + 1e-6
         if sign < 0:                                        # facing up: the 55° flank stays
@@ -354,7 +358,7 @@ def test_shape_limits_hold_together_after_projection():
     cyl = surface.Cylinder(45.0, 90.0)
     rng = np.random.default_rng(4)
     heights = rng.normal(0.0, 1.5, (64, 17))
-    limited, tilt = transport.limit_shape(cyl, heights, 45.0, None, 3.0)
+    limited, tilt = limits.limit_shape(cyl, heights, 45.0, None, 3.0)
     fine = surface.fine_shape(64, 17, 4)
     assert surface.slopes_deg(cyl, limited, *fine)[0].max() <= 45.0 + 1e-6
     assert curvature.concave_radius(cyl, limited).min() >= 3.0
