@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from . import tolerances
-from .checks_mesh import inspect_mesh
+from .checks.mesh import inspect_mesh
 from .errors import LampfabError
 
 DEFAULT_INNER = Path(__file__).resolve().parent / "data" / "inner_default.obj"

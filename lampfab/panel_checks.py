@@ -1,18 +1,22 @@
-"""Fabrication checks of a panel, in ``checks.run_checks``'s format and order.
+"""Fabrication checks of a panel, as ``checks.run_checks``'s ``CheckResult`` in its order.
 
 The relief is measured on a fine grid of its spline (exact derivatives); topology and
 size on the solid's mesh, as for the lamp.  The cavity and bore checks have nothing to
 measure on a panel: they are listed with ``applies`` false and the reason.
 
-Places (``worst``) are {"x_mm", "z_mm", "xyz_mm"} on the relief, in the STL frame.
+Places (``worst``) are ``checks.places.panel_place`` on the relief, in the STL frame.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from . import checks, panel
-from .checks_mesh import inspect_mesh
+from . import panel
+from .checks.mesh import inspect_mesh
+from .checks.part import build_volume, mesh_valid
+from .checks.places import panel_place
+from .checks.result import CheckResult, not_applicable
+from .limits import OVERHANG_DEG
 from .profile import Fabrication
 
 NOT_A_PANEL = "not applicable to a panel"
@@ -46,50 +50,43 @@ def relief_fields(shape: panel.PanelShape, heights: np.ndarray, samples: tuple[i
             "lean": np.degrees(np.arcsin(np.clip(gz / norm, 0.0, 1.0)))}
 
 
-def _place(xyz) -> dict:
-    x, y, z = (round(float(c), 4) for c in xyz)
-    return {"x_mm": x, "z_mm": z, "xyz_mm": [x, y, z]}
-
-
 def run_checks(shape: panel.PanelShape, heights: np.ndarray, solid_vertices: np.ndarray, solid_faces: np.ndarray,
-               fab: Fabrication, fields: dict | None = None) -> list[dict]:
+               fab: Fabrication, fields: dict | None = None) -> list[CheckResult]:
     """Every check of ``checks.NAMES`` for the panel (heights (nx, nz) mm; the solid's
     mesh (n, 3) mm, (m, 3) int); the cavity and bore checks do not apply."""
     f = fields or relief_fields(shape, heights)
-    result = checks._result
 
     def at(field, pick):
         k = np.unravel_index(int(pick(f[field])), f[field].shape)
-        return float(f[field][k]), _place(f["xyz"][k])
+        return float(f[field][k]), panel_place(f["xyz"][k])
 
     thin, thin_at = at("thickness", np.argmin)
-    out = [result("min_wall", thin, fab.min_wall_mm, "mm", thin >= fab.min_wall_mm, worst=thin_at,
-                  note="thinnest panel: from the flat back face to the relief")]
+    out = [CheckResult("min_wall", thin, fab.min_wall_mm, "mm", thin >= fab.min_wall_mm, worst=thin_at,
+                       note="thinnest panel: from the flat back face to the relief")]
     tilt, tilt_at = at("tilt", np.argmax)
-    out.append(result("max_slope", tilt, fab.max_slope_deg, "deg", tilt <= fab.max_slope_deg, worst=tilt_at,
-                      note="tilt of the relief's normal from the panel's normal"))
+    out.append(CheckResult("max_slope", tilt, fab.max_slope_deg, "deg", tilt <= fab.max_slope_deg, worst=tilt_at,
+                           note="tilt of the relief's normal from the panel's normal"))
     if fab.tool_radius_mm <= 0:
-        out.append(result("tool_radius", None, None, "mm", True, applies=False,
-                          note=f"process {fab.process!r} has no cutting tool (tool_radius_mm = 0)"))
+        out.append(not_applicable("tool_radius", "mm", f"process {fab.process!r} has no cutting tool "
+                                                       f"(tool_radius_mm = 0)"))
     else:
         radius, radius_at = at("concave_radius", np.argmin)
-        out.append(result("tool_radius", radius if np.isfinite(radius) else None, fab.tool_radius_mm, "mm",
-                          radius >= fab.tool_radius_mm, worst=radius_at if np.isfinite(radius) else None,
-                          note="smallest concave radius of the relief (milled from above, through its face)"))
+        out.append(CheckResult("tool_radius", radius if np.isfinite(radius) else None, fab.tool_radius_mm, "mm",
+                               radius >= fab.tool_radius_mm, worst=radius_at if np.isfinite(radius) else None,
+                               note="smallest concave radius of the relief (milled from above, through its face)"))
     if fab.process != "sla":
-        out.append(result("overhang", None, None, "deg", True, applies=False,
-                          note=f"process {fab.process!r} is not built in layers"))
+        out.append(not_applicable("overhang", "deg", f"process {fab.process!r} is not built in layers"))
     else:
         lean, lean_at = at("lean", np.argmax)
-        out.append(result("overhang", lean, checks.OVERHANG_DEG, "deg", lean <= checks.OVERHANG_DEG,
-                          worst=lean_at, note="printed standing on its lower edge, as the STL stands: how far "
-                                              "the relief's down-facing parts lean past vertical"))
-    out.append(result("cavity_overhang", None, None, "deg", True, applies=False, note=NOT_A_PANEL))
+        out.append(CheckResult("overhang", lean, OVERHANG_DEG, "deg", lean <= OVERHANG_DEG,
+                               worst=lean_at, note="printed standing on its lower edge, as the STL stands: how far "
+                                                   "the relief's down-facing parts lean past vertical"))
+    out.append(not_applicable("cavity_overhang", "deg", NOT_A_PANEL))
     sv = np.asarray(solid_vertices, np.float64)
-    out.append(checks._build_volume(sv, fab))
-    out.append(checks._mesh_valid(inspect_mesh(sv, np.asarray(solid_faces, np.int64), True), True))
-    out.append(result("drain", None, None, "voids", True, applies=False, note=NOT_A_PANEL))
-    out.append(result("cavity_access", None, None, "mm", True, applies=False, note=NOT_A_PANEL))
+    out.append(build_volume(sv, fab))
+    out.append(mesh_valid(inspect_mesh(sv, np.asarray(solid_faces, np.int64), True), True))
+    out.append(not_applicable("drain", "voids", NOT_A_PANEL))
+    out.append(not_applicable("cavity_access", "mm", NOT_A_PANEL))
     return out
 
 
@@ -106,7 +103,7 @@ def paint(path_png, fields: dict, fab: Fabrication) -> None:
     if fab.tool_radius_mm > 0:
         bad |= fields["concave_radius"] < fab.tool_radius_mm
     if fab.process == "sla":
-        bad |= fields["lean"] > checks.OVERHANG_DEG
+        bad |= fields["lean"] > OVERHANG_DEG
     rgb = np.stack([np.where(bad, 230, grey), np.where(bad, 40, grey), np.where(bad, 40, grey)], -1)
     picture = rgb.transpose(1, 0, 2)[::-1].astype(np.uint8)  # x across, z up
     with atomic_path(path_png, suffix=".png") as tmp:

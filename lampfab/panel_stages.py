@@ -82,7 +82,7 @@ def solid(build) -> dict:
     return report.data
 
 
-def _run_checks(build, vertices: np.ndarray, faces: np.ndarray) -> list[dict]:
+def _run_checks(build, vertices: np.ndarray, faces: np.ndarray) -> list:
     from . import panel_checks
     from .pipeline import load_heights
 

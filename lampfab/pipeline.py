@@ -478,21 +478,21 @@ def check(build: Build, allow_fail: bool) -> dict:
     report = build.begin("check", {"solid": build.path("solid.npz")})
     sv = artifacts.read_npz(build.path("solid.npz"))
     results = _run_checks(build, sv["vertices"], sv["faces"])
-    failed = [r for r in results if r["applies"] and not r["passed"]]
-    report.figure(checks=results, passed=not failed, allowed_to_fail=allow_fail)
+    failed = [r for r in results if r.failed]
+    report.figure(checks=[r.to_json() for r in results], passed=not failed, allowed_to_fail=allow_fail)
     for r in results:
-        if r["applies"]:
-            _log(f"check: {r['name']}: {'pass' if r['passed'] else 'FAIL'} ({_fmt(r['value'])} {r['unit']}, "
-                 f"limit {_fmt(r['limit'])})")
+        if r.applies:
+            _log(f"check: {r.name}: {'pass' if r.passed else 'FAIL'} ({_fmt(r.value)} {r.unit}, "
+                 f"limit {_fmt(r.limit)})")
     if failed and not allow_fail:
         # A checks.json of an earlier run with other settings must not pass for this one.
         artifacts.remove(build.path("checks.json"))
         report.write(build.path("checks.failed.json"))
         worst = failed[0]
-        place = worst.get("worst") or {}
+        place = worst.worst or {}
         where = f" at u {place['u_deg']:.1f}°, z {place['z_mm']:.1f} mm" if "u_deg" in place else ""
-        raise CheckFailed(f"check {worst['name']} failed: {_fmt(worst['value'])} {worst['unit']} against "
-                          f"limit {_fmt(worst['limit'])}{where} ({len(failed)} failed; see "
+        raise CheckFailed(f"check {worst.name} failed: {_fmt(worst.value)} {worst.unit} against "
+                          f"limit {_fmt(worst.limit)}{where} ({len(failed)} failed; see "
                           f"{build.path('checks.failed.json')} and checks.png; ALLOW_FAIL=1 to go on)", failed)
     artifacts.remove(build.path("checks.failed.json"))
     report.write(build.path("checks.json"))
@@ -500,7 +500,7 @@ def check(build: Build, allow_fail: bool) -> dict:
 
 
 @_per_kind
-def _run_checks(build: Build, vertices: np.ndarray, faces: np.ndarray) -> list[dict]:
+def _run_checks(build: Build, vertices: np.ndarray, faces: np.ndarray) -> list:
     """Every check's result (``checks.run_checks``), and checks.png painted."""
     from . import checks
 

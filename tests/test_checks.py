@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from lampfab import checks, surface
-from lampfab.checks_distance import closest_on_triangles, distance_to_mesh
-from lampfab.checks_geometry import compute_fields
+from lampfab.checks.distance import closest_on_triangles, distance_to_mesh
+from lampfab.checks.fields import compute_fields
 from lampfab.profile import PROFILE_DIR, Fabrication, load_fabrication
 
 R, H = 30.0, 40.0
@@ -81,8 +81,8 @@ def fab_for(process="cnc4", **kw):
 def run(heights, inner, fab, bore_r=5.0, solid_mesh=None, light=LIGHT):
     sv, sf = solid_mesh if solid_mesh is not None else solid(heights, inner, bore_r)
     res = checks.run_checks(CYL, heights, *inner, sv, sf, fab, light, samples=SAMPLES)
-    assert [r["name"] for r in res] == list(checks.NAMES)
-    return {r["name"]: r for r in res}
+    assert [r.name for r in res] == list(checks.NAMES)
+    return {r.name: r for r in res}
 
 
 def near(worst, u_deg, z_mm, du=4.0, dz=2.5):
@@ -99,21 +99,23 @@ DIMPLE = bump(300.0, 15.0, -4.0, np.degrees(3.0 / R), 3.0)  # 4 mm deep, sigma 3
 def test_plain_cylinder_passes_every_check_cnc4():
     # A narrow cavity (r 4) under a wider bore (r 5): a tool reaches it through the bore.
     res = run(PLAIN, inner_cylinder(r=4.0), fab_for("cnc4"))
-    bad = [r["name"] for r in res.values() if not r["passed"]]
+    bad = [r.name for r in res.values() if not r.passed]
     assert bad == []
-    assert res["tool_radius"]["applies"] and res["tool_radius"]["value"] is None   # convex everywhere
-    assert not res["overhang"]["applies"] and not res["cavity_overhang"]["applies"]
-    assert res["min_wall"]["value"] == pytest.approx(6.0)                          # both caps 6 mm
+    assert res["tool_radius"].applies and res["tool_radius"].value is None   # convex everywhere
+    assert not res["overhang"].applies and not res["cavity_overhang"].applies
+    assert res["min_wall"].value == pytest.approx(6.0)                          # both caps 6 mm
 
 
 def test_plain_cylinder_passes_every_check_sla_with_self_supporting_roof():
     res = run(PLAIN, inner_cone_roof(), fab_for("sla", min_wall_mm=1.0))
-    assert [r["name"] for r in res.values() if not r["passed"]] == []
-    assert not res["tool_radius"]["applies"] and not res["cavity_access"]["applies"]
-    assert res["overhang"]["value"] == pytest.approx(0.0, abs=1e-9)
-    assert res["cavity_overhang"]["value"] == pytest.approx(40.0, abs=0.5)        # 50 deg roof
+    assert [r.name for r in res.values() if not r.passed] == []
+    assert not res["tool_radius"].applies and not res["cavity_access"].applies
+    assert res["overhang"].value == pytest.approx(0.0, abs=1e-9)
+    assert res["cavity_overhang"].value == pytest.approx(40.0, abs=0.5)        # 50 deg roof
     import json
-    json.dumps(list(res.values()))                                                 # plain JSON
+
+    stored = json.loads(json.dumps([r.to_json() for r in res.values()]))           # plain JSON
+    assert [checks.CheckResult.from_json(r) for r in stored] == list(res.values())
 
 
 def test_side_wall_matches_geometry():
@@ -135,8 +137,8 @@ def test_thin_wall_fails_at_the_dent():
     h = bump(100.0, 20.0, -9.5, 12.0, 5.0)           # outer radius down to ~20.5 at the dent
     res = run(h, inner, fab_for("sla", min_wall_mm=1.0))
     r = res["min_wall"]
-    assert not r["passed"] and r["value"] < 1.0
-    assert near(r["worst"], 100.0, 20.0)
+    assert not r.passed and r.value < 1.0
+    assert near(r.worst, 100.0, 20.0)
 
 
 def test_outer_surface_inside_the_cavity_gives_a_negative_wall():
@@ -145,16 +147,16 @@ def test_outer_surface_inside_the_cavity_gives_a_negative_wall():
     sv, sf = _arrays(_manifold(*surface.closed_outer_mesh(CYL, h, 2)))  # any valid solid will do
     res = run(h, inner, fab_for("sla", min_wall_mm=1.0), solid_mesh=(sv, sf))
     r = res["min_wall"]
-    assert r["value"] < -3.0 and not r["passed"]
-    assert near(r["worst"], 250.0, 20.0)
+    assert r.value < -3.0 and not r.passed
+    assert near(r.worst, 250.0, 20.0)
 
 
 def test_thin_top_cap_fails_at_the_top():
     inner = inner_cylinder(r=10.0, z0=6.0, z1=H - 0.6)
     res = run(PLAIN, inner, fab_for("sla", min_wall_mm=1.0))
     r = res["min_wall"]
-    assert r["value"] == pytest.approx(0.6, abs=1e-4) and not r["passed"]
-    assert r["worst"]["z_mm"] == pytest.approx(H) and "top cap" in r["note"]
+    assert r.value == pytest.approx(0.6, abs=1e-4) and not r.passed
+    assert r.worst["z_mm"] == pytest.approx(H) and "top cap" in r.note
 
 
 # ------------------------------------------------------------------ max_slope
@@ -163,9 +165,9 @@ def test_sharp_bump_fails_slope_on_its_flank():
     h = bump(200.0, 25.0, 4.0, 8.0, 3.0)              # flanks ~40 deg steep in z
     res = run(h, inner_cylinder(), fab_for("cnc4", max_slope_deg=30.0))
     r = res["max_slope"]
-    assert not r["passed"] and r["value"] > 30.0
-    assert near(r["worst"], 200.0, 25.0, du=5.0, dz=4.5)
-    assert abs(r["worst"]["z_mm"] - 25.0) > 1.0       # on a flank, not on the flat top
+    assert not r.passed and r.value > 30.0
+    assert near(r.worst, 200.0, 25.0, du=5.0, dz=4.5)
+    assert abs(r.worst["z_mm"] - 25.0) > 1.0       # on a flank, not on the flat top
 
 
 def test_slope_agrees_with_surface_slopes_deg():
@@ -182,13 +184,13 @@ def test_small_concave_dimple_fails_tool_radius_on_cnc():
     h = DIMPLE                                        # bottom radius ~ sigma^2 / depth = 2.25 mm
     res = run(h, inner_cylinder(r=8.0), fab_for("cnc4"))
     r = res["tool_radius"]
-    assert r["applies"] and not r["passed"] and r["value"] < 3.0
-    assert near(r["worst"], 300.0, 15.0, du=3.0, dz=1.5)
+    assert r.applies and not r.passed and r.value < 3.0
+    assert near(r.worst, 300.0, 15.0, du=3.0, dz=1.5)
 
 
 def test_tool_radius_does_not_apply_to_sla():
     r = run(DIMPLE, inner_cylinder(r=8.0), fab_for("sla"))["tool_radius"]
-    assert not r["applies"] and r["passed"] and r["value"] is None
+    assert not r.applies and r.passed and r.value is None
 
 
 def test_concave_radius_of_a_known_trough():
@@ -208,16 +210,16 @@ def test_flaring_bump_fails_overhang_below_it():
     h = bump(45.0, 20.0, 5.0, 20.0, 2.5)             # lower flank faces down, ~55 deg
     res = run(h, inner_cone_roof(), fab_for("sla", min_wall_mm=1.0, max_slope_deg=89.0))
     r = res["overhang"]
-    assert not r["passed"] and r["value"] > 45.0
-    assert near(r["worst"], 45.0, 17.5, du=4.0, dz=2.5) and r["worst"]["z_mm"] < 20.0
+    assert not r.passed and r.value > 45.0
+    assert near(r.worst, 45.0, 17.5, du=4.0, dz=2.5) and r.worst["z_mm"] < 20.0
 
 
 def test_flat_cavity_roof_fails_cavity_overhang_at_the_ceiling():
     res = run(PLAIN, inner_cylinder(r=12.0, z1=34.0), fab_for("sla", min_wall_mm=1.0))
     r = res["cavity_overhang"]
-    assert not r["passed"] and r["value"] == pytest.approx(90.0)
-    assert r["worst"]["z_mm"] == pytest.approx(34.0, abs=1e-4)
-    assert np.hypot(*r["worst"]["xyz_mm"][:2]) < 1.0    # the middle of the ceiling
+    assert not r.passed and r.value == pytest.approx(90.0)
+    assert r.worst["z_mm"] == pytest.approx(34.0, abs=1e-4)
+    assert np.hypot(*r.worst["xyz_mm"][:2]) < 1.0    # the middle of the ceiling
 
 
 # ------------------------------------------------------------------ build_volume
@@ -226,14 +228,14 @@ def test_oversize_fails_build_volume_at_the_bulge():
     h = bump(90.0, 20.0, 5.0, 20.0, 8.0)             # y reaches 35 mm: 65 mm across
     res = run(h, inner_cylinder(), fab_for("cnc4", build_x_mm=62.0, build_y_mm=62.0))
     r = res["build_volume"]
-    assert not r["passed"] and r["value"] == pytest.approx(65.0 / 62.0, abs=0.01)
-    assert near(r["worst"], 90.0, 20.0, du=5.0, dz=4.0)
+    assert not r.passed and r.value == pytest.approx(65.0 / 62.0, abs=0.01)
+    assert near(r.worst, 90.0, 20.0, du=5.0, dz=4.0)
 
 
 def test_build_volume_allows_turning_the_part():
     h = bump(90.0, 20.0, 5.0, 20.0, 8.0)             # 60 x 65 fits 70 x 62 turned by 90 deg
     r = run(h, inner_cylinder(), fab_for("cnc4", build_x_mm=62.0, build_y_mm=70.0))["build_volume"]
-    assert r["passed"]
+    assert r.passed
 
 
 # ------------------------------------------------------------------ mesh_valid
@@ -244,8 +246,8 @@ def test_hole_fails_mesh_valid_at_the_hole():
     c = sv[sf].mean(axis=1)
     sf = sf[np.linalg.norm(c - hole_at, axis=1) > 2.0]
     r = run(PLAIN, inner_cylinder(), fab_for("cnc4"), solid_mesh=(sv, sf))["mesh_valid"]
-    assert not r["passed"] and "boundary edges" in r["note"]
-    assert np.linalg.norm(np.array(r["worst"]["xyz_mm"]) - hole_at) < 3.0
+    assert not r.passed and "boundary edges" in r.note
+    assert np.linalg.norm(np.array(r.worst["xyz_mm"]) - hole_at) < 3.0
 
 
 def test_self_intersection_fails_mesh_valid_there():
@@ -254,15 +256,15 @@ def test_self_intersection_fails_mesh_valid_there():
     v = np.vstack([sv, box_v])
     f = np.vstack([sf, box_f + len(sv)])
     r = run(PLAIN, inner_cylinder(), fab_for("cnc4"), solid_mesh=(v, f))["mesh_valid"]
-    assert not r["passed"] and r["value"] >= 2                 # crossing faces + a second body
-    assert near(r["worst"], 270.0, 20.0, du=6.0, dz=3.0)
+    assert not r.passed and r.value >= 2                 # crossing faces + a second body
+    assert near(r.worst, 270.0, 20.0, du=6.0, dz=3.0)
 
 
 def test_triangle_soup_is_welded_and_passes():
     sv, sf = solid(PLAIN, inner_cylinder())
     soup_v, soup_f = sv[sf].reshape(-1, 3), np.arange(3 * len(sf)).reshape(-1, 3)
     r = run(PLAIN, inner_cylinder(), fab_for("cnc4"), solid_mesh=(soup_v, soup_f))["mesh_valid"]
-    assert r["passed"] and "Welded" in r["note"]
+    assert r.passed and "Welded" in r.note
 
 
 # ------------------------------------------------------------------ drain / cavity access
@@ -272,29 +274,29 @@ def test_sealed_cavity_fails_drain_at_the_void():
     sv, sf = solid(PLAIN, inner, bore_r=0.0)           # no bore: the cavity is sealed
     res = run(PLAIN, inner, fab_for("sla", min_wall_mm=1.0), solid_mesh=(sv, sf))
     r = res["drain"]
-    assert not r["passed"] and r["value"] == 1
-    assert r["worst"]["z_mm"] == pytest.approx(20.0, abs=0.5)
-    assert np.hypot(*r["worst"]["xyz_mm"][:2]) < 1.0
-    assert res["mesh_valid"]["passed"]                   # a void is not a second body
+    assert not r.passed and r.value == 1
+    assert r.worst["z_mm"] == pytest.approx(20.0, abs=0.5)
+    assert np.hypot(*r.worst["xyz_mm"][:2]) < 1.0
+    assert res["mesh_valid"].passed                   # a void is not a second body
 
 
 def test_led_inside_material_fails_drain():
     r = run(PLAIN, inner_cylinder(), fab_for("cnc4"), light=np.array([20.0, 0.0, 20.0]))["drain"]
-    assert not r["passed"] and "inside material" in r["note"]
+    assert not r.passed and "inside material" in r.note
 
 
 def test_plain_cylinder_on_two_3axis_setups_fails_tool_axis_at_the_sides():
     # Two setups 180 deg apart: the cylinder's sides, halfway between them, are parallel to the tool.
     r = run(PLAIN, inner_cylinder(r=4.0), fab_for("cnc3", setups=2, max_tool_angle_deg=70.0))["tool_axis"]
-    assert r["applies"] and not r["passed"] and r["value"] == pytest.approx(90.0, abs=0.5)
-    offset = float(r["note"].split("first tool axis at u ")[1].split(" deg")[0])
-    assert abs((r["worst"]["u_deg"] - offset) % 180.0 - 90.0) <= 360.0 / SAMPLES[0] + 1e-6
-    assert "3 setups are enough" in r["note"]                      # 60 deg from a tool axis at worst
+    assert r.applies and not r.passed and r.value == pytest.approx(90.0, abs=0.5)
+    offset = float(r.note.split("first tool axis at u ")[1].split(" deg")[0])
+    assert abs((r.worst["u_deg"] - offset) % 180.0 - 90.0) <= 360.0 / SAMPLES[0] + 1e-6
+    assert "3 setups are enough" in r.note                      # 60 deg from a tool axis at worst
 
 
 def test_plain_cylinder_on_four_3axis_setups_passes_tool_axis():
     r = run(PLAIN, inner_cylinder(r=4.0), fab_for("cnc3", setups=4, max_tool_angle_deg=70.0))["tool_axis"]
-    assert r["passed"] and r["value"] == pytest.approx(45.0, abs=1.0)
+    assert r.passed and r.value == pytest.approx(45.0, abs=1.0)
 
 
 def test_ridge_round_the_lens_fails_tool_axis_midway_between_setups():
@@ -305,19 +307,19 @@ def test_ridge_round_the_lens_fails_tool_axis_midway_between_setups():
     fab = fab_for("cnc3", setups=4, max_tool_angle_deg=50.0)
     res = run(heights, inner_cylinder(r=4.0), fab)
     r = res["tool_axis"]
-    assert res["max_slope"]["passed"]
-    slope = res["max_slope"]["value"]
-    assert not r["passed"]
-    assert r["value"] == pytest.approx(np.degrees(np.arccos(np.cos(np.radians(slope)) * np.cos(np.pi / 4))), abs=0.5)
-    offset = float(r["note"].split("first tool axis at u ")[1].split(" deg")[0])
-    assert abs((r["worst"]["u_deg"] - offset) % 90.0 - 45.0) <= 360.0 / SAMPLES[0] + 1e-6
-    assert abs(abs(r["worst"]["z_mm"] - 20.0) - 3.0) < 1.0                        # on a flank
+    assert res["max_slope"].passed
+    slope = res["max_slope"].value
+    assert not r.passed
+    assert r.value == pytest.approx(np.degrees(np.arccos(np.cos(np.radians(slope)) * np.cos(np.pi / 4))), abs=0.5)
+    offset = float(r.note.split("first tool axis at u ")[1].split(" deg")[0])
+    assert abs((r.worst["u_deg"] - offset) % 90.0 - 45.0) <= 360.0 / SAMPLES[0] + 1e-6
+    assert abs(abs(r.worst["z_mm"] - 20.0) - 3.0) < 1.0                        # on a flank
 
 
 def test_tool_axis_applies_to_3axis_only():
     res = run(PLAIN, inner_cylinder(r=4.0), fab_for("cnc4"))
-    assert not res["tool_axis"]["applies"] and "radial" in res["tool_axis"]["note"]
-    assert "slope against the tool axis" in res["max_slope"]["note"]
+    assert not res["tool_axis"].applies and "radial" in res["tool_axis"].note
+    assert "slope against the tool axis" in res["max_slope"].note
 
 
 def test_wide_cavity_behind_a_narrow_bore_fails_cavity_access_on_cnc():
@@ -325,15 +327,15 @@ def test_wide_cavity_behind_a_narrow_bore_fails_cavity_access_on_cnc():
     r = run(PLAIN, (iv, fi), fab_for("cnc4"))["cavity_access"]
     # The floor's ring outside the bore faces up, hidden from a tool coming through the bore.
     floor = 0.5 * 64 * 12.0 ** 2 * np.sin(2 * np.pi / 64)
-    assert not r["passed"] and r["value"] == pytest.approx(floor - np.pi * 5.0 ** 2, rel=1e-6)
-    assert np.hypot(*r["worst"]["xyz_mm"][:2]) == pytest.approx(12.0, abs=1e-4)
-    assert r["worst"]["z_mm"] == pytest.approx(6.0)
+    assert not r.passed and r.value == pytest.approx(floor - np.pi * 5.0 ** 2, rel=1e-6)
+    assert np.hypot(*r.worst["xyz_mm"][:2]) == pytest.approx(12.0, abs=1e-4)
+    assert r.worst["z_mm"] == pytest.approx(6.0)
 
 
 def test_counterbore_makes_the_cavity_reachable():
     iv, fi = inner_cylinder(r=4.0)                                  # floor 4 mm, counterbore 5 mm
     r = run(PLAIN, (iv, fi), fab_for("cnc4"))["cavity_access"]
-    assert r["passed"] and r["value"] == 0.0 and "counterbore" in r["note"]
+    assert r.passed and r.value == 0.0 and "counterbore" in r.note
 
 
 def test_cavity_widening_upward_fails_cavity_access_even_with_a_counterbore():
@@ -342,8 +344,8 @@ def test_cavity_widening_upward_fails_cavity_access_even_with_a_counterbore():
     iv, fi = _arrays(body)
     r = run(PLAIN, (iv, fi), fab_for("cnc3", setups=4, max_tool_angle_deg=70.0))["cavity_access"]
     walls = np.pi * (4.0 + 9.0) * np.hypot(20.0, 5.0)               # the cone's lateral area
-    assert not r["passed"] and r["value"] == pytest.approx(walls, rel=0.01)
-    assert np.hypot(*r["worst"]["xyz_mm"][:2]) == pytest.approx(9.0, abs=1e-4)
+    assert not r.passed and r.value == pytest.approx(walls, rel=0.01)
+    assert np.hypot(*r.worst["xyz_mm"][:2]) == pytest.approx(9.0, abs=1e-4)
 
 
 # ------------------------------------------------------------------ paint
@@ -351,7 +353,7 @@ def test_cavity_widening_upward_fails_cavity_access_even_with_a_counterbore():
 def test_paint_marks_the_failing_cells_red(tmp_path):
     from PIL import Image
 
-    from lampfab.checks_paint import RED, TITLE_PX
+    from lampfab.checks.paint import RED, TITLE_PX
 
     inner = inner_cylinder(r=20.0, z0=4.0, z1=36.0)
     h = bump(100.0, 20.0, -9.5, 12.0, 5.0)

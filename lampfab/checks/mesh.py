@@ -1,4 +1,4 @@
-"""Topology of the final solid's triangle mesh for the fabrication checks (see checks.py).
+"""Topology of the final solid's triangle mesh for the fabrication checks (see ``lamp``).
 
 pymeshlab gives the authoritative counts (topological measures, self-intersecting
 faces: on a lens of this project it found 180 self-intersecting faces where trimesh
@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import tolerances
+from .. import tolerances
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""Distance from points to a triangle mesh, exact on candidate triangles (see checks.py).
+"""Distance from points to a triangle mesh, exact on candidate triangles (see ``lamp``).
 
 Used for the wall thickness: every sample of the outer surface against the inner layer.
 Units: mm.

@@ -1,4 +1,4 @@
-"""Machining access: can a mill's tool reach every surface of the lens (see checks.py)?
+"""Machining access: can a mill's tool reach every surface of the lens (see ``lamp``)?
 
 Two checks, for milled profiles (``process`` cnc3 / cnc4; cavity_access also for glass):
 
@@ -29,10 +29,12 @@ import math
 
 import numpy as np
 
-from . import tolerances
-from .checks_geometry import Fields
-from .checks_mesh import face_area_nz
-from .profile import Fabrication
+from .. import tolerances
+from ..profile import Fabrication
+from .fields import Fields, faces_on_grid
+from .mesh import face_area_nz
+from .places import cylinder_place
+from .result import CheckResult, not_applicable
 
 # A cavity face is "up-facing" (hidden from a tool below) when its normal into the glass
 # points down by more than this: exactly vertical walls of a revolved inner layer come out
@@ -78,13 +80,12 @@ def tool_axis_cells(f: Fields, fab: Fabrication) -> np.ndarray:
     return tool_angles(f.normal, fab.setups)[0] > fab.max_tool_angle_deg
 
 
-def tool_axis(f: Fields, fab: Fabrication) -> dict:
-    from .checks import _cell_place, _result
-
+def tool_axis(f: Fields, fab: Fabrication) -> CheckResult:
+    """The ``tool_axis`` check of 3-axis milling (see the module docstring)."""
     if fab.process != "cnc3":
         why = ("on the rotary axis the tool axis is radial: max_slope is the slope against it"
                if fab.process == "cnc4" else f"process {fab.process!r} is not 3-axis milling")
-        return _result("tool_axis", None, None, "deg", True, applies=False, note=why)
+        return not_applicable("tool_axis", "deg", why)
     angle, offset = tool_angles(f.normal, fab.setups)
     i, j = np.unravel_index(int(np.argmax(angle)), angle.shape)
     value = float(angle[i, j])
@@ -99,8 +100,8 @@ def tool_axis(f: Fields, fab: Fabrication) -> dict:
             + ", ".join(f"{n}: {per[n]:.0f} deg" for n in SETUP_CHOICES)
             + (f"; {enough[0]} setups are enough." if enough else f"; no count up to {SETUP_CHOICES[-1]} is enough.")
             + " Setups meet in witness lines that polishing must blend; occlusion by bumps is not checked.")
-    return _result("tool_axis", value, limit, "deg", value <= limit, worst=_cell_place(f, int(i), int(j)),
-                   note=note)
+    return CheckResult("tool_axis", value, limit, "deg", value <= limit,
+                       worst=cylinder_place(f.xyz[int(i), int(j)]), note=note)
 
 
 def hidden_cavity(iv: np.ndarray, fi: np.ndarray, mount_radius_mm: float) -> tuple[np.ndarray, np.ndarray, bool]:
@@ -111,7 +112,7 @@ def hidden_cavity(iv: np.ndarray, fi: np.ndarray, mount_radius_mm: float) -> tup
     area (of a floor face: its share of the floor outside the bore circle), whether
     ``solid.plan_bore`` makes the bore a counterbore).
     """
-    from .solid import plan_bore
+    from ..solid import plan_bore
 
     bore = plan_bore(iv, fi, mount_radius_mm)
     area, nz = face_area_nz(iv, fi)
@@ -127,15 +128,12 @@ def hidden_cavity(iv: np.ndarray, fi: np.ndarray, mount_radius_mm: float) -> tup
     return hidden_area > 0, hidden_area, bore.counterbore
 
 
-def cavity_access(iv: np.ndarray, fi: np.ndarray, fab: Fabrication) -> dict:
+def cavity_access(iv: np.ndarray, fi: np.ndarray, fab: Fabrication) -> CheckResult:
     """The ``cavity_access`` check: the cavity area (mm^2) that ``hidden_cavity`` finds
     a tool through the bore cannot reach, for milled and ground lenses.  iv (n, 3) mm,
     fi (m, 3) int: the inner layer wound outward."""
-    from .checks import _place, _result
-
     if fab.process == "sla":
-        return _result("cavity_access", None, None, "mm^2", True, applies=False,
-                       note="printed, not cut: any cavity shape can be built")
+        return not_applicable("cavity_access", "mm^2", "printed, not cut: any cavity shape can be built")
     hidden, area, counterbore = hidden_cavity(iv, fi, fab.mount_radius_mm)
     value = float(area.sum())
     rho = np.hypot(iv[:, 0], iv[:, 1])
@@ -144,7 +142,7 @@ def cavity_access(iv: np.ndarray, fi: np.ndarray, fab: Fabrication) -> dict:
     if hidden.any():
         # The hidden point farthest from the axis: the hardest for a tool from below.
         corners = iv[fi[hidden]].reshape(-1, 3)
-        worst = _place(corners[np.argmax(np.hypot(corners[:, 0], corners[:, 1]))])
+        worst = cylinder_place(corners[np.argmax(np.hypot(corners[:, 0], corners[:, 1]))])
     kind = "a counterbore opening the whole cavity floor" if counterbore else "a bore through the cavity floor"
     note = (f"made from below through {kind} (radius {fab.mount_radius_mm:g} mm; the cavity is up to "
             f"{widest:.2f} mm from the axis): {value:.1f} mm^2 of cavity surface faces up, hidden from a "
@@ -156,4 +154,13 @@ def cavity_access(iv: np.ndarray, fi: np.ndarray, fab: Fabrication) -> dict:
     else:
         note += (" The cavity is bored from the base (a boring bar or long end mill, the roof with a "
                  "pointed or ball tool); its walls refract the light too and need the same polish.")
-    return _result("cavity_access", value, 0.0, "mm^2", value <= 0.0, worst=worst, note=note)
+    return CheckResult("cavity_access", value, 0.0, "mm^2", value <= 0.0, worst=worst, note=note)
+
+
+def access_cells(iv: np.ndarray, fi: np.ndarray, f: Fields, fab: Fabrication) -> np.ndarray:
+    """(mu, mv) bool: cavity faces hidden from a tool entering through the bore, marked on
+    the (u, z) grid of the outer surface (``fields.faces_on_grid``)."""
+    if fab.process == "sla":
+        return np.zeros(f.wall.shape, bool)
+    hidden, _, _ = hidden_cavity(iv, fi, fab.mount_radius_mm)
+    return faces_on_grid(iv, fi[hidden], f)

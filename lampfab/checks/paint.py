@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .checks_geometry import Fields
-from .profile import Fabrication
+from ..profile import Fabrication
+from .fields import Fields
+from .result import CheckResult
 
 MAX_WIDTH = 1024
 TITLE_PX = 18
@@ -41,11 +42,11 @@ def _pool(a: np.ndarray, step: int, how) -> np.ndarray:
     return how(a[:mu].reshape(mu // step, step, *a.shape[1:]), axis=1)
 
 
-def paint(path_png, f: Fields, results: list[dict], cells: dict, fab) -> None:
+def paint(path_png, f: Fields, results: list[CheckResult], cells: dict, fab: Fabrication) -> None:
     """Compose the panels and write them atomically (``artifacts.atomic_path``)."""
     from PIL import Image, ImageDraw, ImageFont
 
-    from .artifacts import atomic_path
+    from ..artifacts import atomic_path
 
     mu, mv = f.wall.shape
     step = max(1, -(-mu // MAX_WIDTH))
@@ -60,19 +61,19 @@ def paint(path_png, f: Fields, results: list[dict], cells: dict, fab) -> None:
     panels = [_header(Image, ImageDraw, font, w, fab, results, vmax)]
     for r in results:
         img = base.copy()
-        mask = cells.get(r["name"])
-        if mask is not None and r["applies"] and not r["passed"]:
+        mask = cells.get(r.name)
+        if mask is not None and r.failed:
             m = _pool(mask, step, np.any).T[::-1]
             img[m] = RED
-        if not r["applies"]:
+        if not r.applies:
             img = (0.35 * img + 0.65 * 128).astype(np.uint8)
         panel = Image.new("RGB", (w, h + TITLE_PX), (24, 24, 24))
         panel.paste(Image.fromarray(img), (0, TITLE_PX))
         draw = ImageDraw.Draw(panel)
         draw.text((4, 2), _title(r), fill=_status_colour(r), font=font)
-        if r["worst"] is not None and r["applies"]:
-            x = r["worst"]["u_deg"] / 360.0 * w
-            y = TITLE_PX + (1.0 - r["worst"]["z_mm"] / f.z[-1]) * (h - 1)
+        if r.worst is not None and r.applies:
+            x = r.worst["u_deg"] / 360.0 * w
+            y = TITLE_PX + (1.0 - r.worst["z_mm"] / f.z[-1]) * (h - 1)
             for rad, col in ((7, (0, 0, 0)), (6, (0, 255, 255)), (5, (0, 0, 0))):
                 draw.ellipse([x - rad, y - rad, x + rad, y + rad], outline=col)
         panels.append(panel)
@@ -96,21 +97,21 @@ def _font(ImageFont):
         return ImageFont.load_default()
 
 
-def _title(r: dict) -> str:
-    if not r["applies"]:
-        return f"{r['name']}: does not apply"
-    val = "-" if r["value"] is None else f"{r['value']:.4g}"
-    lim = "-" if r["limit"] is None else f"{r['limit']:.4g}"
+def _title(r: CheckResult) -> str:
+    if not r.applies:
+        return f"{r.name}: does not apply"
+    val = "-" if r.value is None else f"{r.value:.4g}"
+    lim = "-" if r.limit is None else f"{r.limit:.4g}"
     where = ""
-    if r["worst"] is not None:
-        where = f"  at u {r['worst']['u_deg']:.1f} deg, z {r['worst']['z_mm']:.2f} mm"
-    return f"{r['name']}: {val} {r['unit']} (limit {lim})  {'PASS' if r['passed'] else 'FAIL'}{where}"
+    if r.worst is not None:
+        where = f"  at u {r.worst['u_deg']:.1f} deg, z {r.worst['z_mm']:.2f} mm"
+    return f"{r.name}: {val} {r.unit} (limit {lim})  {'PASS' if r.passed else 'FAIL'}{where}"
 
 
-def _status_colour(r: dict):
-    if not r["applies"]:
+def _status_colour(r: CheckResult):
+    if not r.applies:
         return (160, 160, 160)
-    return (120, 230, 120) if r["passed"] else (255, 90, 90)
+    return (120, 230, 120) if r.passed else (255, 90, 90)
 
 
 def _header(Image, ImageDraw, font, w, fab, results, vmax):
@@ -118,7 +119,7 @@ def _header(Image, ImageDraw, font, w, fab, results, vmax):
     bar_h = 10
     panel = Image.new("RGB", (w, 2 * TITLE_PX + bar_h + 4), (24, 24, 24))
     draw = ImageDraw.Draw(panel)
-    n_fail = sum(1 for r in results if r["applies"] and not r["passed"])
+    n_fail = sum(1 for r in results if r.failed)
     draw.text((4, 2), f"lampfab checks, profile {fab.name or '?'} ({fab.process}): "
               f"{'all pass' if n_fail == 0 else f'{n_fail} FAIL'}; u 0..360 deg across, z up; "
               f"colour = wall thickness, red = fails, magenta = negative wall",
@@ -129,42 +130,3 @@ def _header(Image, ImageDraw, font, w, fab, results, vmax):
     label = f"{vmax:.1f} mm"
     draw.text((w - 8 * len(label), TITLE_PX + bar_h + 2), label, fill=(230, 230, 230), font=font)
     return panel
-
-
-def cavity_cells(iv, fi, f: Fields, fab: Fabrication) -> np.ndarray:
-    """(mu, mv) bool: cavity overhang faces splatted onto the (u, z) grid of the outer
-    surface (the cavity is not on that surface; this marks the heights and directions
-    where it overhangs)."""
-    from .checks import OVERHANG_DEG, cavity_overhang_faces
-    from .tolerances import ANGLE_TOL_DEG
-
-    if fab.process != "sla":
-        return np.zeros(f.wall.shape, bool)
-    angle, _ = cavity_overhang_faces(iv, fi)
-    return _splat_faces(iv, fi[angle > OVERHANG_DEG + ANGLE_TOL_DEG], f)
-
-
-def access_cells(iv, fi, f: Fields, fab: Fabrication) -> np.ndarray:
-    """(mu, mv) bool: cavity faces hidden from a tool entering through the bore, splatted
-    onto the (u, z) grid of the outer surface as ``cavity_cells``."""
-    from .checks_cnc import hidden_cavity
-
-    if fab.process == "sla":
-        return np.zeros(f.wall.shape, bool)
-    hidden, _, _ = hidden_cavity(iv, fi, fab.mount_radius_mm)
-    return _splat_faces(iv, fi[hidden], f)
-
-
-def _splat_faces(iv, faces, f: Fields) -> np.ndarray:
-    """(mu, mv) bool: the cells at the faces' corners and centroids, by angle and height."""
-    out = np.zeros(f.wall.shape, bool)
-    if not len(faces):
-        return out
-    tri = iv[faces]
-    pts = np.concatenate([tri.reshape(-1, 3), tri.mean(axis=1)])
-    mu, mv = out.shape
-    u = np.arctan2(pts[:, 1], pts[:, 0]) % (2 * np.pi)
-    i = np.round(u / (2 * np.pi) * mu).astype(int) % mu
-    j = np.clip(np.round(pts[:, 2] / f.z[-1] * (mv - 1)).astype(int), 0, mv - 1)
-    out[i, j] = True
-    return out

@@ -1,4 +1,4 @@
-"""Per-cell fields of the outer surface that the fabrication checks read (see checks.py).
+"""Per-cell fields of the outer surface that the fabrication checks read (see ``lamp``).
 
 Everything is evaluated on one fine (mu, mv) sample grid of the outer surface: u_i =
 2*pi*i/mu (periodic) and z_j = H*j/(mv-1), the same grid ``surface.sample`` uses, so a
@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import surface
-from .checks_distance import distance_to_mesh
-from .curvature import SAMPLES, concave_radius_of, sample_counts
+from .. import surface
+from ..curvature import SAMPLES, concave_radius_of, sample_counts
+from .distance import distance_to_mesh
 
 @dataclass
 class Fields:
@@ -130,7 +130,7 @@ def _settle_side(xyz: np.ndarray, dist: np.ndarray, side: np.ndarray, vertices: 
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from .inner import winding_number
+    from ..inner import winding_number
 
     step_u = np.linalg.norm(np.roll(xyz, -1, axis=0) - xyz, axis=-1).max()
     step_z = np.linalg.norm(np.diff(xyz, axis=1), axis=-1).max() if xyz.shape[1] > 1 else 0.0
@@ -150,4 +150,21 @@ def _settle_side(xyz: np.ndarray, dist: np.ndarray, side: np.ndarray, vertices: 
         pick = np.unravel_index(np.argmax(np.where(cells, dist, -np.inf)), dist.shape)
         inside = winding_number(vertices, faces, xyz[pick]) > 0.5
         out[cells] = -1.0 if inside else 1.0
+    return out
+
+
+def faces_on_grid(iv: np.ndarray, faces: np.ndarray, f: Fields) -> np.ndarray:
+    """(mu, mv) bool: the cells of ``f``'s grid at the angles and heights of the faces'
+    corners and centroids (iv (n, 3) mm, faces (k, 3) int), so ``checks.png`` can mark
+    the cavity's faces on the unrolled outer surface."""
+    out = np.zeros(f.wall.shape, bool)
+    if not len(faces):
+        return out
+    tri = iv[faces]
+    pts = np.concatenate([tri.reshape(-1, 3), tri.mean(axis=1)])
+    mu, mv = out.shape
+    u = np.arctan2(pts[:, 1], pts[:, 0]) % (2 * np.pi)
+    i = np.round(u / (2 * np.pi) * mu).astype(int) % mu
+    j = np.clip(np.round(pts[:, 2] / f.z[-1] * (mv - 1)).astype(int), 0, mv - 1)
+    out[i, j] = True
     return out

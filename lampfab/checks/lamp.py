@@ -1,19 +1,11 @@
-"""Fabrication checks: can this lens be printed or milled as designed?
+"""The lamp's fabrication checks: can this lens be printed or milled as designed?
 
 ``run_checks`` measures the lens against a fabrication profile (``profile.Fabrication``)
-and returns one dict per check:
-
-    {"name": str, "value": float | None, "limit": float | None, "unit": str,
-     "passed": bool, "applies": bool,
-     "worst": {"u_deg": float, "z_mm": float, "xyz_mm": [x, y, z]} | None,
-     "note": str}
-
-``value`` is the measured figure in ``unit`` (None where there is nothing to measure, e.g.
-a check that does not apply, or no concave region at all); ``passed`` is True for a check
-that does not apply.  ``worst`` is the place that decided the value: ``xyz_mm`` in the
-lamp frame (mm, Z up, base on z = 0) and its cylinder coordinates (u in [0, 360) deg,
-z in mm).  ``paint_checks`` draws the unrolled outer surface (u across, z up) coloured by
-wall thickness, one panel per check with its failing cells red (``checks.png``).
+and returns one ``CheckResult`` per check, in ``result.NAMES`` order.  ``worst`` places
+are ``places.cylinder_place``: the point in the lamp frame (mm, Z up, base on z = 0) and
+its cylinder coordinates (u in [0, 360) deg, z in mm).  ``paint_checks`` draws the
+unrolled outer surface (u across, z up) coloured by wall thickness, one panel per check
+with its failing cells red (``checks.png``).
 
 The checks (what and why):
   min_wall         thinnest material between the outer surface and the cavity or bore,
@@ -22,35 +14,37 @@ The checks (what and why):
                    (fab.max_slope_deg)
   tool_radius      smallest concave radius of curvature vs the ball-end radius (CNC only)
   tool_axis        3-axis milling: steepest surface against the tool axis of its best
-                   indexed setup (fab.setups, fab.max_tool_angle_deg; checks_cnc)
+                   indexed setup (fab.setups, fab.max_tool_angle_deg; ``cnc``)
   overhang         outer surface leaning past OVERHANG_DEG from vertical, printed upright
                    (SLA only)
   cavity_overhang  cavity ceiling leaning past OVERHANG_DEG from vertical (SLA only)
-  build_volume     bounding box vs the machine (fab.build_*_mm)
+  build_volume     bounding box vs the machine (fab.build_*_mm; ``part``)
   mesh_valid       watertight, manifold, consistently wound, no self-intersections, one body
+                   (``part``)
   drain            no sealed void; the cavity opens to the outside (and the LED is not in
                    material)
   cavity_access    no cavity surface hidden from a tool entering through the bore (not
-                   SLA; checks_cnc)
+                   SLA; ``cnc``)
 
 Geometry (heightmap + inner layer) is measured on a fine (u, z) grid of the outer
-surface (``checks_geometry``); topology on the solid's mesh (``checks_mesh``).
+surface (``fields``); topology on the solid's mesh (``mesh``).
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from . import tolerances
-from .checks_cnc import cavity_access, tool_axis, tool_axis_cells
-from .checks_geometry import Fields, compute_fields
-from .curvature import SAMPLES
-from .checks_mesh import MeshReport, face_area_nz, inspect_mesh
-from .limits import OVERHANG_DEG, overhang_limit_deg
-from .profile import Fabrication
-from .surface import Cylinder
+from .. import tolerances
+from ..curvature import SAMPLES
+from ..limits import OVERHANG_DEG, overhang_limit_deg
+from ..profile import Fabrication
+from ..surface import Cylinder
+from .cnc import access_cells, cavity_access, tool_axis, tool_axis_cells
+from .fields import Fields, compute_fields, faces_on_grid
+from .mesh import MeshReport, face_area_nz, inspect_mesh
+from .part import build_volume, mesh_valid
+from .places import cylinder_place
+from .result import CheckResult, not_applicable
 
 # Formlabs' recommended minimum drain hole diameter (SLA design guides quoting it); the
 # bore is the cavity's only opening, so resin drains through it.
@@ -60,15 +54,12 @@ DRAIN_HOLE_MM = 3.5
 # x; below that but above 1 x the tool still reaches, with a note.
 TOOL_MARGIN = 1.3
 
-NAMES = ("min_wall", "max_slope", "tool_radius", "tool_axis", "overhang", "cavity_overhang",
-         "build_volume", "mesh_valid", "drain", "cavity_access")
-
 
 def run_checks(cyl: Cylinder, heights: np.ndarray, inner_vertices: np.ndarray, inner_faces: np.ndarray,
                solid_vertices: np.ndarray, solid_faces: np.ndarray, fab: Fabrication,
                light_mm: np.ndarray, fields: Fields | None = None, mesh: MeshReport | None = None,
-               samples: tuple[int, int] = SAMPLES, self_intersections: bool = True) -> list[dict]:
-    """Run every check; a list of JSON-able dicts in ``NAMES`` order (see module docstring).
+               samples: tuple[int, int] = SAMPLES, self_intersections: bool = True) -> list[CheckResult]:
+    """Run every check, in ``result.NAMES`` order (see the module docstring).
 
     heights (nu, nv) mm radial offsets; inner_vertices (n, 3) mm and inner_faces (m, 3)
     int, wound outward (``inner.load_inner``); solid_vertices (p, 3) mm and solid_faces
@@ -94,8 +85,8 @@ def run_checks(cyl: Cylinder, heights: np.ndarray, inner_vertices: np.ndarray, i
         tool_axis(fields, fab),
         _overhang(fields, fab),
         _cavity_overhang(iv, fi, fab),
-        _build_volume(sv, fab),
-        _mesh_valid(mesh, self_intersections),
+        build_volume(sv, fab),
+        mesh_valid(mesh, self_intersections),
         _drain(mesh, sv, sf, light, fab),
         cavity_access(iv, fi, fab),
     ]
@@ -122,29 +113,7 @@ def cached_fields(cyl, heights, inner_vertices, inner_faces, mount_radius_mm, sa
     return _LAST_FIELDS[key]
 
 
-def failed(results: list[dict]) -> list[dict]:
-    """The checks that apply and did not pass."""
-    return [r for r in results if r["applies"] and not r["passed"]]
-
-
 # ---------------------------------------------------------------- the checks
-
-def _result(name, value, limit, unit, passed, applies=True, worst=None, note=""):
-    return {"name": name, "value": None if value is None else float(value),
-            "limit": None if limit is None else float(limit), "unit": unit,
-            "passed": bool(passed), "applies": bool(applies), "worst": worst, "note": note}
-
-
-def _place(xyz) -> dict:
-    """{"u_deg", "z_mm", "xyz_mm"} of a point in the lamp frame (mm)."""
-    x, y, z = (float(c) for c in xyz)
-    u = math.degrees(math.atan2(y, x)) % 360.0
-    return {"u_deg": round(u, 3), "z_mm": round(z, 4), "xyz_mm": [round(x, 4), round(y, 4), round(z, 4)]}
-
-
-def _cell_place(f: Fields, i: int, j: int) -> dict:
-    return _place(f.xyz[i, j])
-
 
 def _argmin2(a: np.ndarray) -> tuple[int, int]:
     i, j = np.unravel_index(int(np.argmin(a)), a.shape)
@@ -156,11 +125,11 @@ def wall_cells(f: Fields, fab: Fabrication) -> np.ndarray:
     return f.wall < fab.min_wall_mm
 
 
-def _min_wall(f: Fields, fab: Fabrication) -> dict:
+def _min_wall(f: Fields, fab: Fabrication) -> CheckResult:
     i, j = _argmin2(f.wall)
     side = float(f.wall[i, j])
-    cands = [(side, _cell_place(f, i, j), "side"), (f.wall_top, _place(f.wall_top_xyz), "top cap"),
-             (f.wall_base, _place(f.wall_base_xyz), "base")]
+    cands = [(side, cylinder_place(f.xyz[i, j]), "side"), (f.wall_top, cylinder_place(f.wall_top_xyz), "top cap"),
+             (f.wall_base, cylinder_place(f.wall_base_xyz), "base")]
     value, worst, where = min(cands, key=lambda c: c[0])
     thin = wall_cells(f, fab)
     note = (f"thinnest: {where}. Side wall min {side:.3f} mm at u {np.degrees(f.u[i]):.1f} deg, "
@@ -168,7 +137,7 @@ def _min_wall(f: Fields, fab: Fabrication) -> dict:
             f"top cap {f.wall_top:.3f} mm; base {f.wall_base:.3f} mm. Side wall = exact distance "
             f"from the outer surface samples to the inner layer and the bore; negative = the outer "
             f"surface is inside the cavity.")
-    return _result("min_wall", value, fab.min_wall_mm, "mm", value >= fab.min_wall_mm, worst=worst, note=note)
+    return CheckResult("min_wall", value, fab.min_wall_mm, "mm", value >= fab.min_wall_mm, worst=worst, note=note)
 
 
 def slope_cells(f: Fields, fab: Fabrication) -> np.ndarray:
@@ -176,7 +145,7 @@ def slope_cells(f: Fields, fab: Fabrication) -> np.ndarray:
     return f.slope > fab.max_slope_deg
 
 
-def _max_slope(f: Fields, fab: Fabrication) -> dict:
+def _max_slope(f: Fields, fab: Fabrication) -> CheckResult:
     i, j = np.unravel_index(int(np.argmax(f.slope)), f.slope.shape)
     value = float(f.slope[i, j])
     note = (f"tilt of the outer normal from the radial direction; "
@@ -185,8 +154,8 @@ def _max_slope(f: Fields, fab: Fabrication) -> dict:
         note += ". On the rotary axis the tool axis is radial: this is the slope against the tool axis"
     elif fab.process == "cnc3":
         note += " (the design's limit; the slope against the 3-axis tool is tool_axis)"
-    return _result("max_slope", value, fab.max_slope_deg, "deg", value <= fab.max_slope_deg,
-                   worst=_cell_place(f, int(i), int(j)), note=note)
+    return CheckResult("max_slope", value, fab.max_slope_deg, "deg", value <= fab.max_slope_deg,
+                       worst=cylinder_place(f.xyz[int(i), int(j)]), note=note)
 
 
 def tool_cells(f: Fields, fab: Fabrication) -> np.ndarray:
@@ -196,16 +165,15 @@ def tool_cells(f: Fields, fab: Fabrication) -> np.ndarray:
     return f.concave_radius < fab.tool_radius_mm
 
 
-def _tool_radius(f: Fields, fab: Fabrication) -> dict:
+def _tool_radius(f: Fields, fab: Fabrication) -> CheckResult:
     tool = fab.tool_radius_mm
     if tool <= 0:
-        return _result("tool_radius", None, None, "mm", True, applies=False,
-                       note=f"process {fab.process!r} has no cutting tool (tool_radius_mm = 0)")
+        return not_applicable("tool_radius", "mm", f"process {fab.process!r} has no cutting tool (tool_radius_mm = 0)")
     i, j = _argmin2(f.concave_radius)
     value = float(f.concave_radius[i, j])
     if not np.isfinite(value):
-        return _result("tool_radius", None, tool, "mm", True,
-                       note="the outer surface is convex everywhere: any ball-end reaches it")
+        return CheckResult("tool_radius", None, tool, "mm", True,
+                           note="the outer surface is convex everywhere: any ball-end reaches it")
     passed = value >= tool
     note = (f"smallest concave radius of curvature (largest principal curvature from the "
             f"fundamental forms); a ball of radius {tool} mm cannot reach the bottom of a "
@@ -213,7 +181,7 @@ def _tool_radius(f: Fields, fab: Fabrication) -> dict:
             f"is tighter than the tool.")
     if passed and value < TOOL_MARGIN * tool:
         note += f" Passes, but below the {TOOL_MARGIN} x tool radius machining guides suggest."
-    return _result("tool_radius", value, tool, "mm", passed, worst=_cell_place(f, i, j), note=note)
+    return CheckResult("tool_radius", value, tool, "mm", passed, worst=cylinder_place(f.xyz[i, j]), note=note)
 
 
 def overhang_cells(f: Fields, fab: Fabrication) -> np.ndarray:
@@ -225,10 +193,9 @@ def overhang_cells(f: Fields, fab: Fabrication) -> np.ndarray:
     return f.overhang > limit + tolerances.ANGLE_TOL_DEG
 
 
-def _overhang(f: Fields, fab: Fabrication) -> dict:
+def _overhang(f: Fields, fab: Fabrication) -> CheckResult:
     if overhang_limit_deg(fab) is None:
-        return _result("overhang", None, None, "deg", True, applies=False,
-                       note=f"process {fab.process!r} is not built in layers")
+        return not_applicable("overhang", "deg", f"process {fab.process!r} is not built in layers")
     i, j = np.unravel_index(int(np.argmax(f.overhang)), f.overhang.shape)
     value = float(f.overhang[i, j])
     cells = overhang_cells(f, fab)
@@ -236,8 +203,8 @@ def _overhang(f: Fields, fab: Fabrication) -> dict:
             f"surface leans past vertical (0 = vertical, 90 = a ceiling). "
             f"{f.area[cells].sum():.1f} mm^2 lean past {OVERHANG_DEG:.0f} deg and would need "
             f"supports on the optical surface (support scars).")
-    return _result("overhang", value, OVERHANG_DEG, "deg", value <= OVERHANG_DEG + tolerances.ANGLE_TOL_DEG,
-                   worst=_cell_place(f, int(i), int(j)), note=note)
+    return CheckResult("overhang", value, OVERHANG_DEG, "deg", value <= OVERHANG_DEG + tolerances.ANGLE_TOL_DEG,
+                       worst=cylinder_place(f.xyz[int(i), int(j)]), note=note)
 
 
 def cavity_overhang_faces(iv: np.ndarray, fi: np.ndarray):
@@ -252,10 +219,19 @@ def cavity_overhang_faces(iv: np.ndarray, fi: np.ndarray):
     return angle, area
 
 
-def _cavity_overhang(iv, fi, fab: Fabrication) -> dict:
+def cavity_cells(iv: np.ndarray, fi: np.ndarray, f: Fields, fab: Fabrication) -> np.ndarray:
+    """(mu, mv) bool: cavity overhang faces marked on the (u, z) grid of the outer surface
+    (the cavity is not on that surface; this marks the heights and directions where it
+    overhangs)."""
     if fab.process != "sla":
-        return _result("cavity_overhang", None, None, "deg", True, applies=False,
-                       note=f"process {fab.process!r} is not built in layers")
+        return np.zeros(f.wall.shape, bool)
+    angle, _ = cavity_overhang_faces(iv, fi)
+    return faces_on_grid(iv, fi[angle > OVERHANG_DEG + tolerances.ANGLE_TOL_DEG], f)
+
+
+def _cavity_overhang(iv, fi, fab: Fabrication) -> CheckResult:
+    if fab.process != "sla":
+        return not_applicable("cavity_overhang", "deg", f"process {fab.process!r} is not built in layers")
     angle, area = cavity_overhang_faces(iv, fi)
     value = float(angle.max())
     steep = angle >= value - 1.0  # within a degree: the whole of a flat ceiling, not its noisiest facet
@@ -268,65 +244,15 @@ def _cavity_overhang(iv, fi, fab: Fabrication) -> dict:
             f"the part, where supports could not be removed through the bore: {area[bad].sum():.1f} "
             f"mm^2 lean past {OVERHANG_DEG:.0f} deg from vertical. A self-supporting roof in the inner "
             f"layer (a cone or dome no flatter than {OVERHANG_DEG:.0f} deg from vertical) avoids it.")
-    return _result("cavity_overhang", value, OVERHANG_DEG, "deg", value <= OVERHANG_DEG + tolerances.ANGLE_TOL_DEG,
-                   worst=_place(mid), note=note)
+    return CheckResult("cavity_overhang", value, OVERHANG_DEG, "deg",
+                       value <= OVERHANG_DEG + tolerances.ANGLE_TOL_DEG, worst=cylinder_place(mid), note=note)
 
 
-def _build_volume(sv: np.ndarray, fab: Fabrication) -> dict:
-    lo, hi = sv.min(axis=0), sv.max(axis=0)
-    ext = hi - lo
-    build = np.array([fab.build_x_mm, fab.build_y_mm, fab.build_z_mm])
-    # The part may turn 90 deg about z on the platform: take the better x/y orientation.
-    straight = ext / build
-    turned = ext / build[[1, 0, 2]]
-    ratios = straight if straight.max() <= turned.max() else turned
-    axis = int(np.argmax(ratios))
-    value = float(ratios[axis])
-    # Where the part sticks out: across, the vertex farthest from the lamp axis along the
-    # worst axis; upward, the highest vertex (the part stands on the platform).
-    far = np.abs(sv[:, axis]) if axis < 2 else sv[:, 2]
-    worst = _place(sv[int(np.argmax(far))])
-    note = (f"bounding box {ext[0]:.1f} x {ext[1]:.1f} x {ext[2]:.1f} mm; build volume "
-            f"{build[0]:.0f} x {build[1]:.0f} x {build[2]:.0f} mm (x/y may swap); value = largest "
-            f"extent / build size, worst along {'xyz'[axis]}.")
-    return _result("build_volume", value, 1.0, "ratio", value <= 1.0, worst=worst, note=note)
-
-
-def _mesh_valid(m: MeshReport, self_intersections: bool) -> dict:
-    bodies = int((m.shell_volume > 0).sum())
-    parts = {
-        "boundary_edges": m.boundary_edges,
-        "non_manifold_edges": m.non_manifold_edges,
-        "non_manifold_vertices": m.non_manifold_vertices,
-        "self_intersecting_faces": m.self_intersecting_faces,
-        "misoriented_edges": m.misoriented_edges,
-        "extra_bodies": max(bodies - 1, 0) + (1 if bodies == 0 else 0),
-    }
-    value = sum(parts.values())
-    worst = None
-    for key, count in parts.items():
-        if count and m.places.get(key) is not None:
-            worst = _place(m.places[key])
-            break
-    if worst is None and parts["extra_bodies"] and len(m.shell_volume) > 1:
-        pos = np.flatnonzero(m.shell_volume > 0)
-        if len(pos) > 1:
-            worst = _place(m.shell_point[pos[np.argsort(m.shell_volume[pos])[0]]])
-    details = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in parts.items())
-    note = (f"{m.faces} faces, {m.vertices} vertices; {details} (pymeshlab topological measures"
-            f"{' and self-intersection selection' if self_intersections else '; self-intersections NOT tested'}). "
-            f"Bodies = closed shells wound outward: {bodies}.")
-    if m.welded:
-        note += (f" Welded at {tolerances.WELD_MM * 1e3:g} um first (a triangle soup): {m.welded} vertices "
-                 f"merged, {m.degenerate} faces collapsed.")
-    return _result("mesh_valid", value, 0, "defects", value == 0, worst=worst, note=note)
-
-
-def _drain(m: MeshReport, sv, sf, light, fab: Fabrication) -> dict:
-    from .inner import winding_number
+def _drain(m: MeshReport, sv, sf, light, fab: Fabrication) -> CheckResult:
+    from ..inner import winding_number
 
     voids = np.flatnonzero(m.shell_volume < 0)
-    worst = _place(m.shell_point[voids[np.argmin(m.shell_volume[voids])]]) if len(voids) else None
+    worst = cylinder_place(m.shell_point[voids[np.argmin(m.shell_volume[voids])]]) if len(voids) else None
     # The LED must sit in air (the cavity), not in material: the solid's winding number
     # there is ~0 in the cavity or a void, ~1 inside material.
     wn = winding_number(sv, sf, light) if len(sf) else 0.0
@@ -337,7 +263,7 @@ def _drain(m: MeshReport, sv, sf, light, fab: Fabrication) -> dict:
             f"the cavity drains through the bore (radius {fab.mount_radius_mm} mm).")
     if led_in_material:
         note += f" The LED at {np.round(light, 2).tolist()} mm is inside material."
-        worst = worst or _place(light)
+        worst = worst or cylinder_place(light)
     if m.boundary_edges:
         note += " The mesh is open (see mesh_valid): shells and voids are uncertain."
     if fab.process == "sla":
@@ -349,18 +275,18 @@ def _drain(m: MeshReport, sv, sf, light, fab: Fabrication) -> dict:
                  "supports or raft with a gap under the bore.")
     elif fab.process in ("cnc3", "cnc4"):
         note += " A sealed void cannot be milled at all."
-    return _result("drain", len(voids), 0, "voids", passed, worst=worst, note=note)
+    return CheckResult("drain", len(voids), 0, "voids", passed, worst=worst, note=note)
 
 
 # ---------------------------------------------------------------- painting
 
 def paint_checks(path_png, cyl: Cylinder, heights: np.ndarray, inner_vertices: np.ndarray,
-                 inner_faces: np.ndarray, fab: Fabrication, results: list[dict],
+                 inner_faces: np.ndarray, fab: Fabrication, results: list[CheckResult],
                  fields: Fields | None = None, samples: tuple[int, int] = SAMPLES) -> None:
     """Write ``checks.png``: one panel per check, the unrolled outer surface (u across from
     0 to 360 deg, z up) coloured by wall thickness, failing cells red, the worst place
     ringed.  Arguments as ``run_checks``; ``results`` its output."""
-    from .checks_paint import access_cells, cavity_cells, paint
+    from .paint import paint
 
     if fields is None:
         fields = cached_fields(cyl, heights, inner_vertices, inner_faces, fab.mount_radius_mm, samples)
