@@ -16,58 +16,29 @@ import numpy as np
 
 from . import panel
 from .errors import GeometryError
-from .step import check_and_write
+from .export.bspline import evaluate, interpolating_cubic, occ_surface
+from .export.step_file import check_and_write
 from .tolerances import OCC_COINCIDENT_MM, OCC_TOLERANCE_MM
 
 
 def bspline(shape: panel.PanelShape, heights: np.ndarray):
-    """The relief as an OCCT ``Geom_BSplineSurface`` (mm), interpolating the nodes."""
-    from OCP.Geom import Geom_BSplineSurface
-    from OCP.gp import gp_Pnt
-    from OCP.TColgp import TColgp_Array2OfPnt
-    from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
-    from scipy.interpolate import make_interp_spline
-
+    """(the relief as an OCCT ``Geom_BSplineSurface`` (mm) interpolating the nodes, its
+    pole counts (x, z))."""
     nx, nz = heights.shape
-    x, z = shape.node_x(nx), shape.node_z(nz)
     pts = panel.points(shape, heights)                                    # (nx, nz, 3)
-    in_z = make_interp_spline(z, pts.transpose(1, 0, 2).reshape(nz, -1), k=3)
-    rows = in_z.c.reshape(-1, nx, 3).transpose(1, 0, 2)                 # (nx, poles_z, 3)
-    in_x = make_interp_spline(x, rows.reshape(nx, -1), k=3)
-    poles = in_x.c.reshape(-1, rows.shape[1], 3)                        # (poles_x, poles_z, 3)
-    arr = TColgp_Array2OfPnt(1, poles.shape[0], 1, poles.shape[1])
-    for i in range(poles.shape[0]):
-        for j in range(poles.shape[1]):
-            arr.SetValue(i + 1, j + 1, gp_Pnt(*map(float, poles[i, j])))
-
-    def array(values, cls):
-        out = cls(1, len(values))
-        for k, value in enumerate(values):
-            out.SetValue(k + 1, value)
-        return out
-
-    (ux, mx), (uz, mz) = (np.unique(t, return_counts=True) for t in (in_x.t, in_z.t))
-    return Geom_BSplineSurface(arr, array(list(map(float, ux)), TColStd_Array1OfReal),
-                               array(list(map(float, uz)), TColStd_Array1OfReal),
-                               array(list(map(int, mx)), TColStd_Array1OfInteger),
-                               array(list(map(int, mz)), TColStd_Array1OfInteger), 3, 3, False, False), poles.shape
+    in_z, z_knots, z_mults = interpolating_cubic(shape.node_z(nz), pts.transpose(1, 0, 2))
+    poles, x_knots, x_mults = interpolating_cubic(shape.node_x(nx), in_z.transpose(1, 0, 2))
+    return occ_surface(poles, x_knots, x_mults, z_knots, z_mults, False), poles.shape
 
 
 def deviation_mm(shape: panel.PanelShape, heights: np.ndarray, surface) -> float:
     """Largest distance between the B-spline and the heightmap's spline, at the nodes and
     half-way between them (mm)."""
-    from OCP.gp import gp_Pnt
-
     nx, nz = heights.shape
     mx, mz = 2 * nx - 1, 2 * nz - 1
     true = panel.points(shape, panel.sample(shape, heights, mx, mz))
-    p = gp_Pnt()
-    worst = 0.0
-    for i, x in enumerate(shape.node_x(mx)):
-        for j, z in enumerate(shape.node_z(mz)):
-            surface.D0(float(x), float(z), p)
-            worst = max(worst, float(np.linalg.norm(np.array([p.X(), p.Y(), p.Z()]) - true[i, j])))
-    return worst
+    gap = evaluate(surface, shape.node_x(mx), shape.node_z(mz)) - true
+    return max(float(np.linalg.norm(d)) for d in gap.reshape(-1, 3))
 
 
 def build_solid(shape: panel.PanelShape, heights: np.ndarray):
@@ -129,7 +100,7 @@ def build_solid(shape: panel.PanelShape, heights: np.ndarray):
 
 
 def write_step(path, shape: panel.PanelShape, heights: np.ndarray, expected_volume_mm3: float) -> dict:
-    """Write the panel as a STEP (AP214, mm) solid; figures as ``step.write_step``'s.
+    """Write the panel as a STEP (AP214, mm) solid; figures as ``step_file.write_step``'s.
 
     Raises GeometryError if the solid is not one valid closed solid of the expected
     volume (within ``tolerances.VOLUME_REL``)."""

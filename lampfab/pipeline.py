@@ -519,7 +519,7 @@ def _fmt(value) -> str:
 def export(build: Build) -> dict:
     """lens.stl and lens.step, both read back and checked, and design.json."""
     from . import solid as solid_mod
-    from . import gltf, step, stl
+    from .export import gltf, step_file, stl
     from .tolerances import VOLUME_REL
 
     fab = build.fab
@@ -537,7 +537,7 @@ def export(build: Build) -> dict:
     if slicer is not None and (slicer["repairs"] or slicer["parts"] != 1):
         raise LampfabError(f"{build.path('lens.stl')}: admesh would repair it ({slicer}); a slicer would too")
     step_info = _write_step(build, stl_volume)
-    back = step.read_step(build.path("lens.step"))
+    back = step_file.read_step(build.path("lens.step"))
     rel = abs(back["volume_mm3"] - stl_volume) / stl_volume
     if not (back["n_solids"] == 1 and back["valid"] and back["closed"] and rel <= VOLUME_REL):
         raise LampfabError(f"{build.path('lens.step')}: read back it is not one valid closed solid matching the "
@@ -564,11 +564,11 @@ def export(build: Build) -> dict:
 @_per_kind
 def _write_step(build: Build, stl_volume_mm3: float) -> dict:
     """lens.step, checked against the STL's volume; ``step.write_step``'s figures."""
-    from . import step
+    from .export import step_file
 
     d = build.design
     iv, if_ = build.inner()
-    return step.write_step(build.path("lens.step"), build.cylinder, load_heights(build), iv, if_,
+    return step_file.write_step(build.path("lens.step"), build.cylinder, load_heights(build), iv, if_,
                            build.fab.mount_radius_mm, d.export.step_samples_u, d.export.step_samples_v,
                            expected_volume_mm3=stl_volume_mm3)
 
@@ -655,7 +655,8 @@ def _finishing(build: Build) -> dict:
 def _report_pictures(build: Build) -> dict:
     """The report's own pictures in ``report/``: the glass lamp in its room, the
     bumpy lens, the unrolled heightmap.  Returns their paths."""
-    from . import beauty, stl
+    from . import beauty
+    from .export import stl
 
     v = build.design.verify
     design = artifacts.read_json(build.path("design.json"))

@@ -40,7 +40,8 @@ class Loaded:
 
 
 def load(design_path) -> Loaded:
-    from . import stl, trace
+    from . import trace
+    from .export import stl
 
     design_path = Path(design_path)
     design = read_design(design_path)

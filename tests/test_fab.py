@@ -6,7 +6,8 @@ import shutil
 import numpy as np
 import pytest
 
-from lampfab import guidance, lens, room, solid, stl, tolerance_study, trace
+from lampfab import guidance, lens, room, solid, tolerance_study, trace
+from lampfab.export import stl
 from lampfab.profile import load_fabrication
 
 from helpers import CYL, bumps, inner

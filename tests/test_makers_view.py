@@ -101,7 +101,7 @@ def test_text_lamp_end_to_end(text_lamp):
 def test_optimization_gif_and_lens_glb(text_lamp):
     import trimesh
 
-    from lampfab import stl
+    from lampfab.export import stl
 
     out, _ = text_lamp
     with Image.open(out / "optimization.gif") as gif:

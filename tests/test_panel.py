@@ -85,7 +85,7 @@ def test_panel_profile_is_strict(tmp_path):
 
 @pytest.mark.slow
 def test_make_lamp_with_a_panel(tmp_path):
-    from lampfab import step, stl
+    from lampfab.export import step_file, stl
 
     run = subprocess.run(["make", "--no-print-directory", "lamp", f"BUILD={tmp_path}", "NAME=apple",
                           f"PROFILE={TINY}"], cwd=ROOT, capture_output=True, text=True)
@@ -94,7 +94,7 @@ def test_make_lamp_with_a_panel(tmp_path):
     for name in ["lens.stl", "lens.step", "lens.glb", "design.json", "checks.json", "checks.png", "report.html"]:
         assert (out / name).is_file(), name
     v, f = stl.read_stl(out / "lens.stl")
-    back = step.read_step(out / "lens.step")
+    back = step_file.read_step(out / "lens.step")
     assert back["n_solids"] == 1 and back["valid"] and back["closed"] and back["faces"] == 6
     assert back["volume_mm3"] == pytest.approx(solid.mesh_volume(v, f), rel=1e-3)
     checks = {c["name"]: c for c in json.loads((out / "checks.json").read_text())["figures"]["checks"]}

@@ -49,7 +49,8 @@ def test_make_lamp_writes_every_artifact(lamp):
 
 @pytest.mark.slow
 def test_design_json_contract_and_files(lamp):
-    from lampfab import solid, step, stl
+    from lampfab import solid
+    from lampfab.export import step_file, stl
 
     out, _, _ = lamp
     design = json.loads((out / "design.json").read_text())
@@ -62,7 +63,7 @@ def test_design_json_contract_and_files(lamp):
     edges = solid.edge_check(f)
     assert edges["watertight"] and edges["winding_consistent"] and edges["components"] == 1
     assert v[:, 2].min() == pytest.approx(0.0, abs=1e-3)  # standing on its base
-    back = step.read_step(out / design["lens"]["step"])
+    back = step_file.read_step(out / design["lens"]["step"])
     assert back["n_solids"] == 1 and back["valid"] and back["closed"]
     assert back["volume_mm3"] == pytest.approx(solid.mesh_volume(v, f), rel=5e-3)
 

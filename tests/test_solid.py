@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from lampfab import solid, stl, surface
+from lampfab import solid, surface
+from lampfab.export import stl
 from lampfab.errors import GeometryError, LampfabError
 from lampfab.inner import winding_number
 

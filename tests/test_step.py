@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from lampfab import solid, step, stl, surface, tolerances
+from lampfab import solid, surface, tolerances
+from lampfab.export import bspline, step_file, stl
 from lampfab.errors import GeometryError, LampfabError
 
 from helpers import CYL, bumps, inner
@@ -18,7 +19,7 @@ def written(tmp_path_factory):
     mesh = solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=6.0)
     stl.write_stl(folder / "lens.stl", mesh.vertices, mesh.faces)
     sv, sf = stl.read_stl(folder / "lens.stl")
-    info = step.write_step(folder / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES,
+    info = step_file.write_step(folder / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES,
                            expected_volume_mm3=mesh.volume_mm3)
     return folder, info, solid.mesh_volume(sv, sf)
 
@@ -34,10 +35,10 @@ def test_pointwise_spline_is_the_sampled_spline(creased):
 
 
 def test_bspline_interpolates_the_samples():
-    fit = step.bspline_poles(CYL, bumps(), *SAMPLES)
+    fit = bspline.bspline_poles(CYL, bumps(), *SAMPLES)
     assert fit["poles"].shape == (64, 15, 3)
-    occ = step._occ_surface(fit)
-    dev = step.deviation(CYL, bumps(), occ, *SAMPLES)
+    occ = bspline.lamp_surface(fit)
+    dev = bspline.deviation(CYL, bumps(), occ, *SAMPLES)
     assert dev["interpolation_mm"] < 1e-9
     assert dev["radial_mm"] < 0.05 and dev["parametric_mm"] < 0.05
 
@@ -53,7 +54,7 @@ def test_step_round_trip(written):
     assert info["file_bytes"] == path.stat().st_size
     assert not list(folder.glob(".lens.step.*"))
     assert "SI_UNIT(.MILLI.,.METRE.)" in path.read_text()
-    back = step.read_step(path)
+    back = step_file.read_step(path)
     assert back["n_solids"] == 1 and back["valid"] and back["closed"]
     assert back["faces"] == info["faces"]
     assert back["volume_mm3"] == pytest.approx(info["volume_mm3"], rel=1e-9)
@@ -65,33 +66,33 @@ def test_creased_lens_is_one_valid_solid_whose_outer_face_bends_at_the_seams(tmp
     cyl = surface.Cylinder(CYL.radius_mm, CYL.height_mm, creased=True)
     v, f = inner()
     mesh = solid.build_solid(cyl, bumps(), 2, v, f, mount_radius_mm=6.0)
-    info = step.write_step(tmp_path / "lens.step", cyl, bumps(), v, f, 6.0, *SAMPLES,
+    info = step_file.write_step(tmp_path / "lens.step", cyl, bumps(), v, f, 6.0, *SAMPLES,
                            expected_volume_mm3=mesh.volume_mm3)
     assert info["deviation_mm"] < 0.05
-    back = step.read_step(tmp_path / "lens.step")
+    back = step_file.read_step(tmp_path / "lens.step")
     assert back["n_solids"] == 1 and back["valid"] and back["closed"]
     assert back["volume_mm3"] == pytest.approx(mesh.volume_mm3, rel=5e-3)
-    fit = step.bspline_poles(cyl, bumps(), *SAMPLES)
+    fit = bspline.bspline_poles(cyl, bumps(), *SAMPLES)
     seams = np.radians(surface.SEAMS_DEG)
     assert np.allclose(fit["u_knots"][fit["u_mults"] == 3][:4], seams)          # C0 exactly there
     assert fit["u_knots"][-1] == pytest.approx(seams[0] + 2 * np.pi)
-    occ = step._occ_surface(fit)
+    occ = bspline.lamp_surface(fit)
     assert occ.IsUPeriodic() and occ.Continuity() == 0                           # GeomAbs_C0
 
 
 def test_the_fit_takes_as_many_samples_as_the_deviation_needs_and_no_more():
     rough = 3.0 * np.sin(5 * CYL.node_u(16))[:, None] * np.cos(np.linspace(0, 3 * np.pi, 6))[None, :]
-    fitted = step.fit_samples(CYL, rough, 512, 161)
+    fitted = bspline.fit_samples(CYL, rough, 512, 161)
     mu, mv = fitted["samples"]
     assert (mu, mv) != rough.shape and mu % 16 == 0 and (mv - 1) % 5 == 0        # refined from the nodes
-    within = step.deviation(CYL, rough, step._occ_surface(step.bspline_poles(CYL, rough, mu, mv)), mu, mv)
+    within = bspline.deviation(CYL, rough, bspline.lamp_surface(bspline.bspline_poles(CYL, rough, mu, mv)), mu, mv)
     assert within["radial_mm"] <= tolerances.BSPLINE_DEVIATION_MM
     assert fitted["deviation"]["radial_mm"] == within["radial_mm"]
-    coarser = step.deviation(CYL, rough, step._occ_surface(step.bspline_poles(CYL, rough, mu // 2, (mv - 1) // 2 + 1)),
-                             mu // 2, (mv - 1) // 2 + 1)
+    half = (mu // 2, (mv - 1) // 2 + 1)
+    coarser = bspline.deviation(CYL, rough, bspline.lamp_surface(bspline.bspline_poles(CYL, rough, *half)), *half)
     assert coarser["radial_mm"] > tolerances.BSPLINE_DEVIATION_MM
     with pytest.raises(GeometryError, match="raise \\[export\\] step_samples"):
-        step.fit_samples(CYL, rough, 16, 6)
+        bspline.fit_samples(CYL, rough, 16, 6)
 
 
 def test_step_bore_opens_the_cavity(written):
@@ -123,9 +124,9 @@ def test_step_counterbore_is_one_valid_solid_matching_the_stl(tmp_path):
 
     v, f = inner(sections=16)
     mesh = solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=20.5)
-    info = step.write_step(tmp_path / "lens.step", CYL, bumps(), v, f, 20.5, *SAMPLES,
+    info = step_file.write_step(tmp_path / "lens.step", CYL, bumps(), v, f, 20.5, *SAMPLES,
                            expected_volume_mm3=mesh.volume_mm3)
-    back = step.read_step(tmp_path / "lens.step")
+    back = step_file.read_step(tmp_path / "lens.step")
     assert back["n_solids"] == 1 and back["valid"] and back["closed"]
     assert back["faces"] == info["faces"] == 4 + 16 + 16 + 1     # the floor became the shoulder ring
     assert back["volume_mm3"] == pytest.approx(mesh.volume_mm3, rel=5e-3)
@@ -143,33 +144,33 @@ def test_step_bytes_are_reproducible_with_source_date_epoch(tmp_path, monkeypatc
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
     texts = []
     for name in ("a", "b"):
-        step.write_step(tmp_path / name / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES)
+        step_file.write_step(tmp_path / name / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES)
         texts.append((tmp_path / name / "lens.step").read_bytes())
     assert texts[0] == texts[1]
     assert b"FILE_NAME('lens.step','2023-11-14T22:13:20'" in texts[0] and b"PRODUCT('lens','lens'" in texts[0]
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "yesterday")
     with pytest.raises(LampfabError, match="SOURCE_DATE_EPOCH='yesterday': give whole seconds"):
-        step.write_step(tmp_path / "c" / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES)
+        step_file.write_step(tmp_path / "c" / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES)
 
 
 def test_step_refuses_a_bore_too_wide_and_writes_nothing(tmp_path):
     v, f = inner()
     with pytest.raises(LampfabError, match="too large"):
-        step.write_step(tmp_path / "lens.step", CYL, bumps(), v, f, 19.6, *SAMPLES)
+        step_file.write_step(tmp_path / "lens.step", CYL, bumps(), v, f, 19.6, *SAMPLES)
     assert not list(tmp_path.iterdir())
 
 
 def test_step_volume_mismatch_is_an_error(tmp_path):
     v, f = inner()
     with pytest.raises(GeometryError, match="differs from the expected"):
-        step.write_step(tmp_path / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES, expected_volume_mm3=1e5)
+        step_file.write_step(tmp_path / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES, expected_volume_mm3=1e5)
     assert not (tmp_path / "lens.step").exists()
 
 
 def test_read_step_errors(tmp_path):
     with pytest.raises(LampfabError, match="not found"):
-        step.read_step(tmp_path / "missing.step")
+        step_file.read_step(tmp_path / "missing.step")
     bad = tmp_path / "bad.step"
     bad.write_text("not a step file\n")
     with pytest.raises(LampfabError, match="not a readable STEP"):
-        step.read_step(bad)
+        step_file.read_step(bad)

@@ -7,6 +7,8 @@ from lampfab import concavity, curvature, limits, raymap, room, surface, trace, 
 from lampfab.limits import Limits
 from lampfab.profile import Optimize
 
+PRINTED = Limits(20.0, 45.0)  # mm of offset, degrees of slope; no tool, no overhang rule
+
 
 def _nominal(walls):
     return {w.name: w.sector_deg() for w in walls}
@@ -38,7 +40,7 @@ def test_landing_agrees_with_the_photon_tracer(mi, photons, default_design, cyl)
     """Where raymap says a photon lands is the pixel Mitsuba's tracer puts it in."""
     walls = room.walls(default_design)
     wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
-    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, Limits(20.0, 45.0), 1e-2)
+    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, PRINTED, 1e-2)
     rng = np.random.default_rng(0)
     heights = 2.0 * rng.standard_normal((32, 9))
     land = fitter.trace(heights)
@@ -70,7 +72,7 @@ def test_fit_finds_a_surface_that_lands_photons_at_its_goals(photons, default_de
     cyl = surface.Cylinder(cyl.radius_mm, cyl.height_mm, creased)
     walls = room.walls(default_design)
     wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
-    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, Limits(20.0, 45.0), 1e-4)
+    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, PRINTED, 1e-4)
     u = cyl.node_u(32)[:, None]
     z = cyl.node_z(9)[None, :]
     truth = 3.0 * np.sin(3 * u) * np.cos(np.pi * z / cyl.height_mm) + 0.02 * (z - 45.0)
@@ -93,7 +95,7 @@ def test_a_photon_without_a_landing_derivative_steers_nothing(photons, default_d
     that photon out instead of turning NaN."""
     walls = room.walls(default_design)
     wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
-    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, Limits(20.0, 45.0), 1e-4)
+    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, PRINTED, 1e-4)
     heights = np.zeros((32, 9))
     grid = fitter.grid(heights.shape)
     goals = np.zeros((len(wall_of), 2))
@@ -186,7 +188,7 @@ def test_transport_alone_projects_the_target(tiny_design, inner_layer):
     cyl = surface.Cylinder(45.0, 90.0, creased=True)
     opt = Optimize(grid_u=32, grid_v=9, tessellation=2, transport_rounds=3, transport_photons=60_000,
                    smoothness=1e-2, seed=0, transport_corrections=2, dump_share=0.1)
-    heights, figures = transport.design(cyl, walls, targets, *inner_layer, light, 1.5, Limits(20.0, 45.0), opt,
+    heights, figures = transport.design(cyl, walls, targets, *inner_layer, light, 1.5, PRINTED, opt,
                                         log=lambda m: None)
     # Each correction pass starts from light that lands closer to the target than before.
     first, second = (p["landed_density_error"] for p in figures["passes"][1:])

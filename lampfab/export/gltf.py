@@ -16,7 +16,7 @@ import struct
 
 import numpy as np
 
-from .artifacts import write_bytes
+from ..artifacts import write_bytes
 
 _FLOAT, _UINT = 5126, 5125            # glTF component types
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .artifacts import write_bytes
-from .errors import LampfabError
+from ..artifacts import write_bytes
+from ..errors import LampfabError
 
 
 def write_stl(path, vertices: np.ndarray, faces: np.ndarray) -> int:
