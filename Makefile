@@ -28,7 +28,7 @@ TARGETS = --target "$(TARGET)" --target-front "$(TARGET_FRONT)" --target-left "$
           --text "$(TEXT)" --panorama "$(PANORAMA)"
 
 .DELETE_ON_ERROR:
-.PHONY: lamp test clean bench help prepare plan init optimize solid check export verify FORCE
+.PHONY: lamp test clean bench help prepare plan init optimize solid fabcheck export verify FORCE
 
 lamp: $(B)/report.html
 	@$(PY) -m lampfab.cli summary $(ARGS)
@@ -37,7 +37,7 @@ help:
 	@echo "make lamp TARGET=image.png [NAME=..] [PROFILE=draft|quick|default|fine|floor|panel] [FAB=sla_resin|acrylic_cnc4|...]"
 	@echo "make lamp TEXT=\"Happy birthday\"      words instead of an image (build/text/)"
 	@echo "make lamp PANORAMA=examples/panorama.png   a 360° panorama wrapped around the room"
-	@echo "make <stage> TARGET=..   one stage and what it needs: prepare plan init optimize solid check export verify"
+	@echo "make <stage> TARGET=..   one stage and what it needs: prepare plan init optimize solid fabcheck export verify"
 	@echo "make test | make bench | make clean"
 	@echo "variables: TARGET_FRONT/LEFT/RIGHT/FLOOR (per-wall images), ALLOW_FAIL=1 (go on after a failed check),"
 	@echo "           BUILD=build (output folder), NAME (default: the image's name)"
@@ -76,7 +76,7 @@ $(B)/solid.json: $(B)/optimize.json
 	$(call RUN,40_solid)
 
 $(B)/checks.json: $(B)/solid.json
-	$(call RUN,50_check) $(if $(ALLOW_FAIL),--allow-fail)
+	$(call RUN,50_fabcheck) $(if $(ALLOW_FAIL),--allow-fail)
 
 $(B)/export.json: $(B)/checks.json
 	$(call RUN,60_export)
@@ -89,7 +89,7 @@ plan: $(B)/plan.json
 init: $(B)/init.json
 optimize: $(B)/optimize.json
 solid: $(B)/solid.json
-check: $(B)/checks.json
+fabcheck: $(B)/checks.json
 export: $(B)/export.json
 verify: $(B)/report.html
 

@@ -27,11 +27,16 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-PIPELINE = ("prepare", "plan", "init", "optimize", "solid", "check", "export", "verify")
+PIPELINE = ("prepare", "plan", "init", "optimize", "solid", "fabcheck", "export", "verify")
+# The fabrication check writes checks.json; revisions before it was named fabcheck call
+# its script 50_check.py.
+REPORTS = {"fabcheck": "checks"}
+OLD_SCRIPTS = {"fabcheck": "check"}
 
 
 def _script(tree: Path, stage: str) -> Path:
-    found = sorted((tree / "stages").glob(f"*_{stage}.py"))
+    found = sorted((tree / "stages").glob(f"*_{stage}.py")) or \
+        sorted((tree / "stages").glob(f"*_{OLD_SCRIPTS.get(stage, stage)}.py"))
     if len(found) != 1:
         sys.exit(f"stage_times: {tree}/stages has no single script for the stage {stage!r}")
     return found[0]
@@ -47,7 +52,7 @@ def _run(tree: Path, args: list[str]) -> None:
 def _stage(tree: Path, build: Path, stage: str, profile: str, fab: str, *extra: str) -> float:
     _run(tree, [str(ROOT / ".venv/bin/python"), str(_script(tree, stage)), "--out", str(build),
                 "--profile", profile, "--fab", fab, *extra])
-    return float(json.loads((build / f"{stage}.json").read_text())["wall_time_s"])
+    return float(json.loads((build / f"{REPORTS.get(stage, stage)}.json").read_text())["wall_time_s"])
 
 
 def main() -> None:

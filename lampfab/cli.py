@@ -2,7 +2,7 @@
 
     lampfab lamp IMAGE              every stage, into build/<image stem>/
     lampfab <stage> --out DIR ...   one stage (prepare, plan, init, optimize, solid,
-                                    check, export, verify)
+                                    fabcheck, export, verify)
     lampfab profiles                the design and fabrication profiles
 
 User errors print one line and exit 2; a failed fabrication check exits 3.
@@ -24,7 +24,7 @@ STAGE_HELP = {
     "optimize": "refine by differentiable photon splatting (Mitsuba + Dr.Jit), or the source's ptracer "
                 "method with [optimize] method = \"seed\" (heightmap.npz)",
     "solid": "merge outer shell, inner layer and LED bore into one solid (solid.npz)",
-    "check": "manufacturability against the fabrication profile (checks.json, checks.png)",
+    "fabcheck": "manufacturability against the fabrication profile (checks.json, checks.png)",
     "export": "lens.stl, lens.step, lens.glb and design.json, each read back and checked",
     "verify": "render the exported STL with its true facets; report.html",
 }
@@ -63,7 +63,7 @@ def parser() -> argparse.ArgumentParser:
         _common(p)
         if name == "prepare":
             _targets(p)
-        if name == "check":
+        if name == "fabcheck":
             p.add_argument("--allow-fail", action="store_true", help="write checks.json even if a check fails")
     snap = sub.add_parser("settings", help="write resolved profiles and input hashes to OUT/settings.json "
                                            "if they changed (Make's prerequisite for every stage)")
@@ -89,7 +89,7 @@ def run_stage(name: str, args: argparse.Namespace) -> None:
 
     build = pipeline.Build.open(args.out, args.profile, args.fab)
     if name == "settings":
-        pipeline.snapshot(build, build.path("settings.json"), _images(args), args.text)
+        pipeline.snapshot(build, _images(args), args.text)
     elif name == "summary":
         pipeline.summary(build)
     else:
@@ -98,13 +98,13 @@ def run_stage(name: str, args: argparse.Namespace) -> None:
 
 def _pipeline_stage(build, name: str, args: argparse.Namespace) -> None:
     """One of ``pipeline.STAGES`` on ``build`` (prepare reads ``args.image`` and the
-    other images, check ``args.allow_fail``)."""
+    other images, fabcheck ``args.allow_fail``)."""
     from . import pipeline
 
     if name == "prepare":
         pipeline.prepare(build, args.image, _per_wall(args), args.text, args.panorama)
-    elif name == "check":
-        pipeline.check(build, args.allow_fail)
+    elif name == "fabcheck":
+        pipeline.fabcheck(build, args.allow_fail)
     else:
         getattr(pipeline, name)(build)
 
@@ -129,7 +129,7 @@ def _lamp(args: argparse.Namespace) -> None:
     out = Path(args.out or Path("build") / stem)
     build = pipeline.Build.open(out, args.profile, args.fab)
     # Reads every input first: a bad one stops here, before any stage writes a file.
-    pipeline.snapshot(build, build.path("settings.json"), _images(args), args.text)
+    pipeline.snapshot(build, _images(args), args.text)
     for name in pipeline.STAGES:
         t0 = time.time()
         _pipeline_stage(build, name, args)

@@ -5,7 +5,7 @@ rebuild at every step of the seed method.  Without the bore, glass stays under t
 cavity's floor and reflects a little light back up, a faint spot near a wall's centre
 that the made lens does not have.  Figures that must describe the made lens trace the
 solid instead: verify traces the exported STL, the plan and the tolerance study
-``pipeline._solid_maker``.
+``pipeline.kind.Lamp.solid_maker``.
 """
 
 from __future__ import annotations

@@ -221,7 +221,7 @@ class Optimizer:
         back by ``REGROWTH``, up to the profile's, and each level starts at it.  The
         heights stay a radial graph clipped to +-max_offset_mm, which the inner layer
         clears by ``tolerances.MIN_GAP_MM`` (checked when it is loaded), so a step cannot
-        make the surface cross itself or the inner layer; the check stage measures the
+        make the surface cross itself or the inner layer; the fabcheck stage measures the
         walls.
         """
         opt = self.opt

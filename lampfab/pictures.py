@@ -30,6 +30,12 @@ def _font(size: int):
     return ImageFont.truetype(str(FONT), size)
 
 
+def preview_name(step: int, wall: str) -> str:
+    """The file name of the optimizer's preview of ``wall`` at ``step``, as
+    ``optimization_gif`` finds it."""
+    return f"step{step:06d}_{wall}.png"
+
+
 def optimization_gif(previews_dir, wall_names: list[str], out_path) -> int:
     """Animate ``previews_dir/stepNNNNNN_<wall>.png``: one frame per step, the walls side
     by side in ``wall_names`` order, labelled with the step.  Returns the frame count
@@ -82,7 +88,7 @@ def heightmap_map(cyl: Cylinder, heights: np.ndarray, wall_names: list[str], out
     shift = int(round(width * SECTOR_WIDTH_DEG / 2 / 360))               # start at u = -45°: whole sectors
     fine = np.roll(fine, shift, axis=0)
     span = max(float(np.abs(fine).max()), 1e-6)
-    picture = _diverging(fine / span).transpose(1, 0, 2)[::-1]       # rows top-down = z down
+    picture = diverging(fine / span).transpose(1, 0, 2)[::-1]       # rows top-down = z down
     pad, top, bar = 60, 26, 14
     canvas = Image.new("RGB", (width + 2 * pad, top + rows + 56), (13, 15, 18))
     canvas.paste(Image.fromarray(picture), (pad, top))
@@ -96,7 +102,7 @@ def heightmap_map(cyl: Cylinder, heights: np.ndarray, wall_names: list[str], out
     draw.text((pad - 6, top), f"{cyl.height_mm:.0f} mm", fill=(170, 170, 170), font=font, anchor="ra")
     draw.text((pad - 6, top + rows), "0", fill=(170, 170, 170), font=font, anchor="rd")
     y = top + rows + 18
-    ramp = _diverging(np.linspace(-1, 1, width)[:, None]).transpose(1, 0, 2)
+    ramp = diverging(np.linspace(-1, 1, width)[:, None]).transpose(1, 0, 2)
     canvas.paste(Image.fromarray(np.repeat(ramp, bar, axis=0)), (pad, y))
     for value, anchor, x in ((-span, "la", pad), (0.0, "ma", pad + width / 2), (span, "ra", pad + width)):
         draw.text((x, y + bar + 2), f"{value:+.1f} mm", fill=(200, 200, 200), font=font, anchor=anchor)
@@ -107,7 +113,7 @@ def heightmap_map(cyl: Cylinder, heights: np.ndarray, wall_names: list[str], out
     return {"min_mm": float(fine.min()), "max_mm": float(fine.max())}
 
 
-def _diverging(t: np.ndarray) -> np.ndarray:
+def diverging(t: np.ndarray) -> np.ndarray:
     """(...) in [-1, 1] -> (..., 3) uint8 sRGB along the diverging ramp."""
     s = (np.clip(t, -1.0, 1.0) + 1.0) / 2.0 * (len(_DIVERGING) - 1)
     k = np.minimum(s.astype(int), len(_DIVERGING) - 2)

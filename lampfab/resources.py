@@ -26,7 +26,7 @@ PER_PHOTON = {"plan": 130, "init": 240, "optimize": 480, "verify": 130}
 # Bytes per vertex of the tessellated outer surface (grid x tessellation): numpy copies,
 # Mitsuba's mesh and BVH, the solid's boolean and the checks' distance queries.
 # Measured: 263 k against 1 k vertices.
-PER_VERTEX = {"plan": 350, "init": 550, "optimize": 800, "solid": 2000, "check": 1500, "export": 1500,
+PER_VERTEX = {"plan": 350, "init": 550, "optimize": 800, "solid": 2000, "fabcheck": 1500, "export": 1500,
               "verify": 2000}
 # Photons traced per batch by the verify-style tracer (lampfab.trace.BATCH).
 TRACE_BATCH = 4_000_000

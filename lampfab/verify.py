@@ -4,7 +4,7 @@ Reads only ``design.json`` and the files it names (the STL and the targets), so 
 independent tracer that reads the same files can reproduce these figures.  Each wall
 is rendered for the ideal point light and for the LED's real size (a Lambertian
 sphere of the design's radius), and compared with its target.  A panel's ``light`` is a
-collimated beam (``"type": "collimated"``, see ``panel.light_json``): parallel, then
+collimated beam (``"type": "collimated"``, see ``panel.geometry.light_json``): parallel, then
 with its real spread.
 """
 
@@ -67,7 +67,7 @@ def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bo
     radius = design["light"]["radius"] if light_radius_mm is None else light_radius_mm
     emitter = None
     if design["light"].get("type") == "collimated":
-        from .panel import emitter_from_json
+        from .panel.geometry import emitter_from_json
 
         emitter = emitter_from_json(design["light"], divergence=light_radius_mm is None)
     images, info = trace.render_walls(loaded.scene, np.asarray(design["light"]["position"], float), radius,
@@ -112,14 +112,22 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
             "ghost_share": float(ghosts.sum() / max(point[k].sum(), 1e-300)),
             "direct_ssim": metrics.ssim(direct, target), "ssim_ceiling": metrics.ssim(exact + ghosts, target),
             "led_pearson": blur["pearson"], "led_ssim": blur["ssim"], "led_share": led_info["shares"][k]}
-        artifacts.write_png(out_dir / f"{wall.name}.png", point[k])
-        artifacts.write_png(out_dir / f"{wall.name}_led.png", led[k])
-        artifacts.write_npz(out_dir / f"{wall.name}.npz", point=point[k], led=led[k], ghosts=ghosts)
+        point_png, led_png, arrays = wall_files(out_dir, wall.name)
+        artifacts.write_png(point_png, point[k])
+        artifacts.write_png(led_png, led[k])
+        artifacts.write_npz(arrays, point=point[k], led=led[k], ghosts=ghosts)
     return figures
 
 
+def wall_files(out_dir, name: str) -> tuple[Path, Path, Path]:
+    """Where ``verify`` puts a wall's renders in ``out_dir``: (point light PNG, LED PNG,
+    the float images as .npz: point, led, ghosts)."""
+    out_dir = Path(out_dir)
+    return out_dir / f"{name}.png", out_dir / f"{name}_led.png", out_dir / f"{name}.npz"
+
+
 def optimizer_agreement(out_dir, reference_npz, names: list[str]) -> dict[str, float]:
-    """Pearson r between verify's point-light render of each wall (``out_dir/<wall>.npz``)
+    """Pearson r between verify's point-light render of each wall (``wall_files``)
     and the optimizer's own final render of it (``reference_npz``, one array per wall,
     written by the optimize stage), the verify render resampled to the optimizer's shape.
 
@@ -132,7 +140,7 @@ def optimizer_agreement(out_dir, reference_npz, names: list[str]) -> dict[str, f
     reference = artifacts.read_npz(reference_npz)
     out = {}
     for name in names:
-        mine = artifacts.read_npz(Path(out_dir) / f"{name}.npz")["point"]
+        mine = artifacts.read_npz(wall_files(out_dir, name)[2])["point"]
         theirs = np.asarray(reference[name], np.float64)
         out[name] = metrics.pearson(image.letterbox(mine, *theirs.shape), theirs)
     return out

@@ -90,7 +90,7 @@ def test_text_lamp_end_to_end(text_lamp):
     assert settings["text"] == "Hi there"
     # One summary line per stage with its time, then the total.
     lines = run.stdout.strip().splitlines()[-9:]
-    for line, stage in zip(lines, ["prepare", "plan", "init", "optimize", "solid", "check", "export", "verify"]):
+    for line, stage in zip(lines, ["prepare", "plan", "init", "optimize", "solid", "fabcheck", "export", "verify"]):
         assert re.match(rf"{stage}\s+\d+\.\d s  \S", line), line
     assert lines[-1].startswith("total") and "report.html" in lines[-1]
     # The tiny profile's lens projects the letters at r 0.80-0.82.

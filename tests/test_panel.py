@@ -8,7 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lampfab import panel, panel_transport, profile, room, solid
+from lampfab import profile, room, solid
+from lampfab.panel import geometry as panel
+from lampfab.panel import transport as panel_transport
 from lampfab.errors import LampfabError
 
 ROOT = Path(__file__).resolve().parent.parent

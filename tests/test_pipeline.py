@@ -123,7 +123,7 @@ def test_a_failed_check_exits_3_with_one_line_naming_it(lamp, tmp_path):
     sla = (ROOT / "profiles" / "fab" / "sla_resin.toml").read_text()
     strict.write_text(re.sub(r"(?m)^min_wall_mm = .*$", "min_wall_mm = 40.0", sla))
     (out / "checks.json").unlink()
-    run = subprocess.run([sys.executable, "-m", "lampfab.cli", "check", "--out", str(out), "--profile", str(TINY),
+    run = subprocess.run([sys.executable, "-m", "lampfab.cli", "fabcheck", "--out", str(out), "--profile", str(TINY),
                           "--fab", str(strict)], cwd=ROOT, capture_output=True, text=True)
     assert run.returncode == 3 and "Traceback" not in run.stderr
     lines = run.stderr.strip().splitlines()
@@ -168,7 +168,7 @@ def test_help_is_instant_and_lists_the_stages():
     run = subprocess.run([sys.executable, "-X", "importtime", "-m", "lampfab.cli", "--help"], cwd=ROOT,
                          capture_output=True, text=True)
     assert run.returncode == 0
-    for stage in ["prepare", "plan", "init", "optimize", "solid", "check", "export", "verify", "lamp"]:
+    for stage in ["prepare", "plan", "init", "optimize", "solid", "fabcheck", "export", "verify", "lamp"]:
         assert stage in run.stdout
     assert "mitsuba" not in run.stderr and "OCP" not in run.stderr  # heavy imports stay lazy
 

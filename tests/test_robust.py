@@ -447,7 +447,7 @@ def test_interrupted_runs_resume_to_the_same_bytes_as_an_uninterrupted_one(tmp_p
     # The STEP's header carries a timestamp unless SOURCE_DATE_EPOCH fixes it.
     env = {**os.environ, "SOURCE_DATE_EPOCH": "1700000000"}
     for out in outs:
-        for stage in ("40_solid", "50_check", "60_export"):
+        for stage in ("40_solid", "50_fabcheck", "60_export"):
             run = subprocess.run([sys.executable, f"stages/{stage}.py", "--profile", str(prof), "--out", str(out)],
                                  cwd=ROOT, capture_output=True, text=True, env=env)
             assert run.returncode == 0, run.stderr[-2000:]

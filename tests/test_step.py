@@ -20,7 +20,7 @@ def written(tmp_path_factory):
     stl.write_stl(folder / "lens.stl", mesh.vertices, mesh.faces)
     sv, sf = stl.read_stl(folder / "lens.stl")
     info = step_file.write_step(folder / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES,
-                           expected_volume_mm3=mesh.volume_mm3)
+                                expected_volume_mm3=mesh.volume_mm3)
     return folder, info, solid.mesh_volume(sv, sf)
 
 
@@ -67,7 +67,7 @@ def test_creased_lens_is_one_valid_solid_whose_outer_face_bends_at_the_seams(tmp
     v, f = inner()
     mesh = solid.build_solid(cyl, bumps(), 2, v, f, mount_radius_mm=6.0)
     info = step_file.write_step(tmp_path / "lens.step", cyl, bumps(), v, f, 6.0, *SAMPLES,
-                           expected_volume_mm3=mesh.volume_mm3)
+                                expected_volume_mm3=mesh.volume_mm3)
     assert info["deviation_mm"] < 0.05
     back = step_file.read_step(tmp_path / "lens.step")
     assert back["n_solids"] == 1 and back["valid"] and back["closed"]
@@ -125,7 +125,7 @@ def test_step_counterbore_is_one_valid_solid_matching_the_stl(tmp_path):
     v, f = inner(sections=16)
     mesh = solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=20.5)
     info = step_file.write_step(tmp_path / "lens.step", CYL, bumps(), v, f, 20.5, *SAMPLES,
-                           expected_volume_mm3=mesh.volume_mm3)
+                                expected_volume_mm3=mesh.volume_mm3)
     back = step_file.read_step(tmp_path / "lens.step")
     assert back["n_solids"] == 1 and back["valid"] and back["closed"]
     assert back["faces"] == info["faces"] == 4 + 16 + 16 + 1     # the floor became the shoulder ring

@@ -60,3 +60,9 @@ def not_applicable(name: str, unit: str, note: str) -> CheckResult:
 def failed(results: list[CheckResult]) -> list[CheckResult]:
     """The checks that apply and did not pass."""
     return [r for r in results if r.failed]
+
+
+def short(number: float | None) -> str:
+    """A check's value or limit as the log and report.html show it: three significant
+    digits ("None" where there is none)."""
+    return f"{number:.3g}" if isinstance(number, float) else str(number)

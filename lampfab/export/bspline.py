@@ -10,7 +10,7 @@ one not-a-knot cubic per sector, joined by knots of multiplicity 3 (C0) at the s
 seams.  OCCT's ``GeomAPI_PointsToBSplineSurface`` is not used: its periodic
 interpolation is wrong between samples near the seam (shared fabrication facts).
 
-The lamp and the panel (``panel.step_solid``) share the rest: the not-a-knot cubic as a
+The lamp and the panel (``panel.brep``) share the rest: the not-a-knot cubic as a
 clamped B-spline (``interpolating_cubic``), the OCCT surface from poles and knots
 (``occ_surface``) and its evaluation on a grid (``evaluate``), from which each measures
 how far its B-spline lies from its heightmap.  Units: mm.

@@ -2,7 +2,7 @@
 a file read back and measured.
 
 ``write_step`` fits the lamp's outer B-spline (``bspline``), assembles the solid around
-it (``brep``) and writes it; the panel's STEP (``panel.step_solid``) goes through the
+it (``brep``) and writes it; the panel's STEP (``panel.brep``) goes through the
 same ``check_and_write``.  The file's time stamp follows ``SOURCE_DATE_EPOCH`` where that
 is set, so the same design can give the same bytes.
 """

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .surface import open_matrix
+from ..surface import open_matrix
 
 
 @dataclass(frozen=True)
@@ -125,7 +125,7 @@ def collimated_emitter(shape: PanelShape, divergence_deg: float = 0.0, behind_mm
     def emit(mi, n, seed):
         import drjit as dr
 
-        from .trace import direction_rng, stratified_square
+        from ..trace import direction_rng, stratified_square
 
         square, count = stratified_square(mi, n, shape.width_mm / shape.height_mm, seed)
         o = mi.Point3f((square.x - 0.5) * shape.width_mm, -behind_mm, square.y * shape.height_mm)

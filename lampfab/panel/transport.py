@@ -24,10 +24,11 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from . import ot, panel
-from .room import Wall
-from .limits import SLOPE_MARGIN_DEG
-from .transport import snell_normals
+from .. import ot
+from ..limits import SLOPE_MARGIN_DEG
+from ..room import Wall
+from ..transport import snell_normals
+from . import geometry as panel
 
 # The beam's direction inside the glass: collimated, at normal incidence on the back face.
 AXIS = np.array([0.0, 1.0, 0.0])

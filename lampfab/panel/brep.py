@@ -14,11 +14,11 @@ import time
 
 import numpy as np
 
-from . import panel
-from .errors import GeometryError
-from .export.bspline import evaluate, interpolating_cubic, occ_surface
-from .export.step_file import check_and_write
-from .tolerances import OCC_COINCIDENT_MM, OCC_TOLERANCE_MM
+from ..errors import GeometryError
+from ..export.bspline import evaluate, interpolating_cubic, occ_surface
+from ..export.step_file import check_and_write
+from ..tolerances import OCC_COINCIDENT_MM, OCC_TOLERANCE_MM
+from . import geometry as panel
 
 
 def bspline(shape: panel.PanelShape, heights: np.ndarray):

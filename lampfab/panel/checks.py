@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import panel
-from .checks.mesh import inspect_mesh
-from .checks.part import build_volume, mesh_valid
-from .checks.places import panel_place
-from .checks.result import CheckResult, not_applicable
-from .limits import OVERHANG_DEG
-from .profile import Fabrication
+from ..checks.mesh import inspect_mesh
+from ..checks.part import build_volume, mesh_valid
+from ..checks.places import panel_place
+from ..checks.result import CheckResult, not_applicable
+from ..limits import OVERHANG_DEG
+from ..profile import Fabrication
+from . import geometry as panel
 
 NOT_A_PANEL = "not applicable to a panel"
 
@@ -95,7 +95,7 @@ def paint(path_png, fields: dict, fab: Fabrication) -> None:
     red where a check fails (too thin, too steep, too tight for the tool, overhang)."""
     from PIL import Image
 
-    from .artifacts import atomic_path
+    from ..artifacts import atomic_path
 
     t = fields["thickness"]
     grey = 60 + 160 * (t - t.min()) / max(float(np.ptp(t)), 1e-9)

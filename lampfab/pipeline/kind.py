@@ -1,0 +1,201 @@
+"""What the stages do differently for each kind of lens (``[lens] kind``).
+
+``LensKind`` declares it; ``Lamp`` is the lamp around its LED, ``panel.kind.Panel`` the
+flat panel of the source's prior work.  ``Build.kind`` picks one, once.  Everything else
+is the same for both and lives in the stages: prepare, the stage reports, the STL and its
+read-back, verify's renders and comparison, report.html.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from . import progress
+
+
+class LensKind(ABC):
+    """The parts of the stages that depend on the kind of lens; ``build`` is the
+    ``build.Build`` a stage runs in."""
+
+    # Whether optimize refines the first design; if not, the first design is the lens.
+    refines: bool = True
+
+    @abstractmethod
+    def check_inputs(self, build) -> None:
+        """Read what the stages will read besides the images; raise LampfabError."""
+
+    @abstractmethod
+    def plain_optics(self, build) -> tuple:
+        """(the lens without relief as a ``trace.MeshScene``, its light's emitter: None for
+        the LED), for the plan."""
+
+    @abstractmethod
+    def first_design(self, build) -> tuple[np.ndarray, dict]:
+        """init: ((nu, nv) mm heights, figures for init.json, "method" first)."""
+
+    @abstractmethod
+    def solid(self, build, heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+        """The closed solid of ``heights``: ((n, 3) mm vertices, (m, 3) int faces,
+        figures for solid.json)."""
+
+    @abstractmethod
+    def check(self, build, vertices: np.ndarray, faces: np.ndarray) -> list:
+        """Every ``checks.CheckResult`` of the solid, in ``checks.NAMES`` order; paints
+        ``build.checks_picture``."""
+
+    @abstractmethod
+    def write_step(self, build, stl_volume_mm3: float) -> dict:
+        """Write ``build.lens_step``, checked against the STL's volume; its figures
+        (``step_file.write_step``'s)."""
+
+    @abstractmethod
+    def light_json(self, build) -> dict:
+        """design.json's ``light``."""
+
+    @abstractmethod
+    def finishing(self, build) -> dict:
+        """verify.json's tolerance study and finishing advice ({} where there are none)."""
+
+    @abstractmethod
+    def report_light(self, build, design: dict) -> tuple[np.ndarray, float]:
+        """The light of report.html's room picture: ((3,) mm position, radius mm)."""
+
+    @abstractmethod
+    def heightmap_picture(self, build, wall_names: list[str], path) -> None:
+        """The outer surface's relief as a colour map, written to ``path``."""
+
+    @abstractmethod
+    def lens_sections(self, build, pictures: dict, fig) -> tuple[list, list]:
+        """report.html's first section and the relief's section, as (title, HTML) lists;
+        ``fig`` is ``report.figure_html``."""
+
+    @abstractmethod
+    def next_steps(self, build) -> str:
+        """What to do with the files (HTML)."""
+
+
+class Lamp(LensKind):
+    """The lamp: a lens around its LED, outer layer a radial heightmap over a cylinder."""
+
+    def check_inputs(self, build) -> None:
+        build.inner()
+
+    def solid_maker(self, build):
+        """``make(heights)``: the lens solid (``solid.Solid``, mm) the solid stage builds
+        from (nu, nv) heights in mm, the inner layer loaded once for every call.
+
+        The plan and the tolerance study trace it too, not the bore-less optical mesh: the
+        bore through the base removes the glass under the cavity's floor, whose
+        reflections would otherwise light a spot on a wall."""
+        from .. import solid
+
+        iv, if_ = build.inner()
+
+        def make(heights: np.ndarray):
+            return solid.build_solid(build.cylinder, heights, build.design.optimize.tessellation, iv, if_,
+                                     build.fab.mount_radius_mm)
+        return make
+
+    def plain_optics(self, build) -> tuple:
+        from .. import trace
+
+        grid = (build.design.optimize.grid_u, build.design.optimize.grid_v)
+        plain = self.solid_maker(build)(np.zeros(grid))
+        return trace.MeshScene(plain.vertices, plain.faces), None
+
+    def first_design(self, build) -> tuple[np.ndarray, dict]:
+        """The transport design (default), or the source's plain cylinder."""
+        from .. import transport
+
+        opt = build.design.optimize
+        grid = (opt.grid_u, opt.grid_v)
+        if opt.init == "cylinder":
+            return np.zeros(grid), {"method": "cylinder"}
+        bar = progress.steps_bar(transport.fit_steps(grid, opt.transport_rounds, opt.transport_corrections), "init")
+
+        def step(figures):
+            bar.update()
+            bar.set_postfix(error=f"{figures['rms_landing_error_mm']:.1f} mm")
+
+        heights, figs = build.transport_design(opt, build.inner(), log=bar.write, on_step=step)
+        bar.update(bar.total - bar.n)  # a fit that converged early skips its last steps
+        bar.close()
+        return heights, {"method": "transport", **figs}
+
+    def solid(self, build, heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+        """Outer shell minus inner layer and LED bore: one watertight solid in mm."""
+        s = self.solid_maker(build)(heights)
+        return s.vertices, s.faces, {"volume_mm3": s.volume_mm3, "triangles": int(len(s.faces)),
+                                     "genus": s.genus, "bore": dataclasses.asdict(s.bore)}
+
+    def check(self, build, vertices: np.ndarray, faces: np.ndarray) -> list:
+        from .. import checks
+
+        iv, if_ = build.inner()
+        heights = build.heights()
+        results = checks.run_checks(build.cylinder, heights, iv, if_, vertices, faces, build.fab, build.light)
+        checks.paint_checks(build.checks_picture, build.cylinder, heights, iv, if_, build.fab, results)
+        return results
+
+    def write_step(self, build, stl_volume_mm3: float) -> dict:
+        from ..export import step_file
+
+        iv, if_ = build.inner()
+        export = build.design.export
+        return step_file.write_step(build.lens_step, build.cylinder, build.heights(), iv, if_,
+                                    build.fab.mount_radius_mm, export.step_samples_u, export.step_samples_v,
+                                    expected_volume_mm3=stl_volume_mm3)
+
+    def light_json(self, build) -> dict:
+        """The LED's centre and radius."""
+        return {"position": build.light.tolist(), "radius": build.fab.led_radius_mm}
+
+    def finishing(self, build) -> dict:
+        """The tolerance study and the post-processing guidance (``guidance``)."""
+        from .. import guidance, tolerance_study
+
+        d, v, fab = build.design, build.design.verify, build.fab
+        make = self.solid_maker(build)
+
+        def lens_mesh(heights):
+            made = make(heights)
+            return made.vertices, made.faces
+
+        study = tolerance_study.study(build.cylinder, build.heights(), lens_mesh, build.light,
+                                      fab.ior, build.walls, build.targets(v.image_px), v.study_photons,
+                                      d.optimize.seed + 11, v.max_bounces, fab.surface_error_mm)
+        progress.log(f"verify: polishing allowance {'>= ' if study['allowance_at_least'] else ''}"
+                     f"{study['allowance_mm'] * 1000:.0f} µm; the profile's {fab.surface_error_mm * 1000:.0f} µm "
+                     f"costs r {study['profile_error_drop']:.3f}")
+        return {"tolerance": study,
+                "guidance": guidance.advice(fab, [w.name for w in build.walls], build.light, study)}
+
+    def report_light(self, build, design: dict) -> tuple[np.ndarray, float]:
+        return np.asarray(design["light"]["position"], float), build.fab.led_radius_mm
+
+    def heightmap_picture(self, build, wall_names: list[str], path) -> None:
+        """The unrolled heightmap, each sector labelled with its wall."""
+        from .. import pictures
+
+        pictures.heightmap_map(build.cylinder, build.heights(), wall_names, path)
+
+    def lens_sections(self, build, pictures: dict, fig) -> tuple[list, list]:
+        first = [("Your lamp", '<div class="row">' + fig(
+            "The lamp in its room", pictures["room"], "the exported lens path-traced as glass; the walls show the "
+            "projections verify traced from the same file (LED size)") + fig(
+            "The lens", pictures["lens"], "lens.stl as a matte object: the bumps are the outer layer that makes "
+            "the picture") + "</div>")]
+        return first, [("The outer layer, unrolled", fig(
+            "Radial offset from the plain cylinder", pictures["heightmap"], "each 90° sector lights the wall named "
+            "above it; orange bulges out, blue goes in"))]
+
+    def next_steps(self, build) -> str:
+        return (f"<p>Send <code>lens.stl</code> to the printer's slicer (binary STL, millimetres, Z up, standing on "
+                f"its base) or <code>lens.step</code> to the CNC shop or into FreeCAD / Fusion (one solid; the outer "
+                f"surface is a single B-spline face). Material: {build.fab.material} (n = {build.fab.ior}). The LED "
+                f"goes into the bore in the base (radius {build.fab.mount_radius_mm} mm); place the lamp with its +y "
+                f"side facing the front wall, {build.design.room.wall_distance_mm:.0f} mm from the front, left and "
+                f"right walls.</p>")

@@ -1,0 +1,52 @@
+"""Stage 7, export: lens.stl, lens.step and lens.glb, each read back and checked, and
+design.json."""
+
+from __future__ import annotations
+
+from ... import artifacts
+from ...errors import LampfabError
+from ..build import Build
+from ..progress import log
+
+
+def export(build: Build) -> dict:
+    """lens.stl and lens.step, both read back and checked, lens.glb and design.json."""
+    from ... import solid
+    from ...export import gltf, step_file, stl
+    from ...tolerances import VOLUME_REL
+
+    fab = build.fab
+    report = build.begin("export", {"solid": build.solid_file, "heightmap": build.heightmap_file})
+    stl_bytes = stl.write_stl(build.lens_stl, *build.solid_mesh())
+    rv, rf = stl.read_stl(build.lens_stl)
+    stl_volume = solid.mesh_volume(rv, rf)
+    glb_bytes = gltf.write_glb(build.lens_glb, rv, rf, fab.ior)
+    edges = solid.edge_check(rf)
+    if not (edges["watertight"] and edges["winding_consistent"] and edges["components"] == 1):
+        raise LampfabError(f"{build.lens_stl}: read back it is not one closed, consistently wound "
+                           f"solid ({edges})")
+    slicer = stl.admesh_check(build.lens_stl)         # None where admesh is not installed
+    if slicer is not None and (slicer["repairs"] or slicer["parts"] != 1):
+        raise LampfabError(f"{build.lens_stl}: admesh would repair it ({slicer}); a slicer would too")
+    step_info = build.kind.write_step(build, stl_volume)
+    back = step_file.read_step(build.lens_step)
+    rel = abs(back["volume_mm3"] - stl_volume) / stl_volume
+    if not (back["n_solids"] == 1 and back["valid"] and back["closed"] and rel <= VOLUME_REL):
+        raise LampfabError(f"{build.lens_step}: read back it is not one valid closed solid matching the "
+                           f"STL within {VOLUME_REL:.1%} ({back}, volume difference {rel:.3%})")
+    artifacts.write_json(build.design_file, {
+        "units": "mm",
+        "light": build.kind.light_json(build),
+        "material": {"name": fab.material, "ior": fab.ior},
+        "lens": {"stl": build.lens_stl.name, "step": build.lens_step.name, "glb": build.lens_glb.name},
+        "walls": [w.to_json(build.target_file(w.name).relative_to(build.out).as_posix()) for w in build.walls],
+    })
+    report.figure(stl_bytes=stl_bytes, stl_volume_mm3=stl_volume, stl_triangles=int(len(rf)), glb_bytes=glb_bytes,
+                  step_bytes=step_info["file_bytes"], step_volume_mm3=back["volume_mm3"],
+                  step_stl_volume_rel=rel, step_faces=back["faces"],
+                  bspline_deviation_mm=step_info["deviation_mm"],
+                  bspline_poles=[step_info["poles_u"], step_info["poles_v"]], admesh=slicer)
+    log(f"export: lens.stl {stl_bytes / 1e6:.1f} MB, lens.step {step_info['file_bytes'] / 1e6:.1f} MB, "
+        f"B-spline deviation {step_info['deviation_mm'] * 1000:.3g} µm, volumes agree to {rel:.2e}")
+    report.write(build.report_file("export"))
+    return report.data

@@ -1,0 +1,46 @@
+"""Stage 8, verify: the exported STL traced with its true facets, compared with the
+targets (verify.json, verify/), and report.html."""
+
+from __future__ import annotations
+
+from ..build import Build
+from ..progress import PartsBar, log
+
+
+def verify(build: Build) -> dict:
+    """Render the exported STL (true facets) from design.json; compare; write report.html."""
+    from ... import verify as verify_mod
+    from ...tolerances import OPTIMIZER_MATCH_R
+    from .. import report_page
+
+    v = build.design.verify
+    report = build.begin("verify", {"design": build.design_file, "stl": build.lens_stl})
+    # Its parts take a minute together with nothing to print between them: a bar by part.
+    bar = PartsBar("verify", ["tracing the exported lens", "tolerance study", "the lamp's renders", "report.html"])
+    bar.begin("tracing the exported lens")
+    figures = verify_mod.verify(build.design_file, build.verify_dir, v.image_px, v.photons,
+                                build.design.optimize.seed + 7, v.max_bounces)
+    bar.begin("tolerance study")
+    if build.optimizer_render_file.exists():
+        agree = verify_mod.optimizer_agreement(build.verify_dir, build.optimizer_render_file, list(figures["walls"]))
+        for name, r in agree.items():
+            figures["walls"][name]["optimizer_pearson"] = r
+        figures["optimizer_match_min"] = min(agree.values())
+        figures["optimizer_match_limit"] = OPTIMIZER_MATCH_R
+    for name, f in figures["walls"].items():
+        log(f"verify: {name}: Pearson r {f['pearson']:.3f}, SSIM {f['ssim']:.3f}, {f['share']:.1%} of the light "
+            f"({figures['real_light']}: r {f['led_pearson']:.3f}); {f['ghost_share']:.1%} of it reflected "
+            f"inside the lens, SSIM {f['direct_ssim']:.3f} without it"
+            + (f"; r {f['optimizer_pearson']:.3f} against the optimizer's render" if "optimizer_pearson" in f else ""))
+    if figures.get("optimizer_match_min", 1.0) < OPTIMIZER_MATCH_R:
+        log(f"verify: WARNING: the exported lens's render matches the optimizer's only to r "
+            f"{figures['optimizer_match_min']:.3f} (< {OPTIMIZER_MATCH_R})")
+    figures.update(build.kind.finishing(build))
+    bar.begin("the lamp's renders")
+    report.figure(**figures)
+    pictures = report_page.pictures(build)
+    bar.begin("report.html")
+    report.write(build.report_file("verify"))
+    report_page.write(build, figures, pictures)
+    bar.close()
+    return report.data

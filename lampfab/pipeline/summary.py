@@ -1,0 +1,45 @@
+"""The lines ``make lamp`` ends with: one per stage, its wall time and its key figure."""
+
+from __future__ import annotations
+
+from .build import STAGES, Build
+
+
+def summary(build: Build) -> None:
+    """One line per finished stage, then the total and where report.html is."""
+    total = 0.0
+    for stage in STAGES:
+        data = build.stage_report(stage)
+        if data is None:
+            continue
+        total += data.get("wall_time_s", 0.0)
+        print(f"{stage:9s} {data.get('wall_time_s', 0):7.1f} s  {_key_figure(stage, data['figures'])}")
+    print(f"{'total':9s} {total:7.1f} s  -> {build.report_html}")
+
+
+def _key_figure(stage: str, figs: dict) -> str:
+    """A stage's headline, in words."""
+    if stage == "prepare":
+        sources = {k[:-len("_source")]: v for k, v in figs.items() if k.endswith("_source")}
+        return "; ".join(f"{v} on {', '.join(w for w in sources if sources[w] == v)}"
+                         for v in dict.fromkeys(sources.values()))
+    if stage == "plan":
+        return f"{1 - figs['lost_share']:.0%} of the light on the wall planes"
+    if stage == "init":
+        tilt = figs.get("max_tilt_deg")
+        return figs["method"] + (f", max tilt {tilt:.1f}°" if tilt is not None else "")
+    if stage == "optimize":
+        loss = figs.get("final_loss")
+        return f"{figs['steps']} steps" + (f", final loss {loss:.3g}" if loss is not None else "")
+    if stage == "solid":
+        return f"{figs['volume_mm3'] / 1000:.0f} cm³, {figs['triangles']} triangles"
+    if stage == "fabcheck":
+        from ..checks import CheckResult, failed
+
+        names = [r.name for r in failed([CheckResult.from_json(c) for c in figs["checks"]])]
+        return f"FAILED: {', '.join(names)}" if names else "all checks pass"
+    if stage == "export":
+        return (f"lens.stl {figs['stl_bytes'] / 1e6:.1f} MB, lens.step {figs['step_bytes'] / 1e6:.1f} MB, "
+                f"B-spline within {figs['bspline_deviation_mm'] * 1000:.2g} µm")
+    return ", ".join(f"{n} r {f['pearson']:.2f} SSIM {f['ssim']:.2f} (LED r {f['led_pearson']:.2f})"
+                     for n, f in figs["walls"].items())
