@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Time-to-quality: the source's method (``seed``: ptracer from the plain cylinder,
+"""Time-to-quality: the source's method (``ptracer``: Mitsuba's ptracer from the plain cylinder,
 cyclic views) against lampfab's default (transport init + ``splat`` refinement).
 
     make bench                      # budgets 30 60 120 180 240 300 450 600 900 s, the bundled apple
@@ -85,8 +85,9 @@ def main() -> None:
     ap.add_argument("--image", default=str(ROOT / "examples" / "apple.png"))
     ap.add_argument("--budgets", type=float, nargs="+", default=[30, 60, 120, 180, 240, 300, 450, 600, 900])
     ap.add_argument("--profile", default="default", help="design profile (the scene and lampfab's schedule)")
-    ap.add_argument("--seed-steps", type=int, default=0,
-                    help="seed's schedule length (default: what fits the largest budget, from its first step)")
+    ap.add_argument("--ptracer-steps", type=int, default=0,
+                    help="the ptracer method's schedule length (default: what fits the largest budget, from its "
+                         "first step)")
     ap.add_argument("--record", action="store_true", help="append the table to bench/RESULTS.md")
     args = ap.parse_args()
     budgets = sorted(args.budgets)
@@ -102,17 +103,17 @@ def main() -> None:
         # The source's method: plain cylinder, ptracer, its scale-independent MSE, cyclic
         # views, coarse-to-fine (half the schedule on the coarse grid, as the profile's
         # levels split it), every step kept.
-        seed_opt = dataclasses.replace(d.optimize, method="seed", loss="si_mse", schedule="cyclic", spp=64,
-                                       backtrack=False, preview_every=10**9, checkpoint_every=10**9)
-        steps = args.seed_steps
+        ptracer_opt = dataclasses.replace(d.optimize, method="ptracer", loss="si_mse", schedule="cyclic", spp=64,
+                                          backtrack=False, preview_every=10**9, checkpoint_every=10**9)
+        steps = args.ptracer_steps
         if not steps:
-            probe = build.optimizer(seed_opt, inner, build.targets(seed_opt.sensor_px))
+            probe = build.optimizer(ptracer_opt, inner, build.targets(ptracer_opt.sensor_px))
             probe.gradient(np.zeros(grid), [0], seed=1)  # the first step compiles the kernels
             t0 = time.time()
             probe.gradient(np.zeros(grid), [0], seed=2)
             steps = max(2, int(budgets[-1] / (time.time() - t0)))
-        seed_rows = run_method("seed", build, inner, targets, budgets, np.zeros(grid),
-                               dataclasses.replace(seed_opt, iterations=steps), 0.0)
+        ptracer_rows = run_method("ptracer", build, inner, targets, budgets, np.zeros(grid),
+                                  dataclasses.replace(ptracer_opt, iterations=steps), 0.0)
 
         # lampfab's default: transport init, each of its fitting passes timed (measuring
         # happens afterwards, off the clock), then the profile's splat schedule.
@@ -137,36 +138,37 @@ def main() -> None:
         splat_rows = run_method("lampfab", build, inner, targets, [b for b in budgets if b >= init_s], heights,
                                 splat_opt, init_s)
 
-    report(args, budgets, seed_rows, pass_rows + [init_row], splat_rows, steps, d.verify.photons)
+    report(args, budgets, ptracer_rows, pass_rows + [init_row], splat_rows, steps, d.verify.photons)
 
 
-def report(args, budgets, seed_rows, init_rows, splat_rows, seed_steps, photons) -> None:
-    best_seed = max(r["r"] for r in seed_rows)
-    seed_at = _first(seed_rows, best_seed)
-    # seed got there after the budget before (a lower bound on its time) ...
-    seed_low = max([b for b in budgets if b < seed_at], default=0.0)
+def report(args, budgets, ptracer_rows, init_rows, splat_rows, ptracer_steps, photons) -> None:
+    best_ptracer = max(r["r"] for r in ptracer_rows)
+    ptracer_at = _first(ptracer_rows, best_ptracer)
+    # ptracer got there after the budget before (a lower bound on its time) ...
+    ptracer_low = max([b for b in budgets if b < ptracer_at], default=0.0)
     # ... lampfab at latest by the first pass or budget that shows it (an upper bound).
     lampfab_rows = init_rows + splat_rows
-    lampfab_at = _first(lampfab_rows, best_seed)
+    lampfab_at = _first(lampfab_rows, best_ptracer)
     lampfab_goal = _first(lampfab_rows, GOAL_R)
-    seed_goal = _first(seed_rows, GOAL_R)
+    ptracer_goal = _first(ptracer_rows, GOAL_R)
     mi = mitsuba()
     lines = ["", f"## {time.strftime('%Y-%m-%d')}: {Path(args.image).name}, {platform.machine()} "
              f"{platform.processor() or 'CPU'}, {os.cpu_count()} cores, Mitsuba {mi.__version__} {mi.variant()}", "",
-             f"seed: {seed_steps} steps planned (as many as fit the largest budget); lampfab: the {args.profile} "
+             f"ptracer: {ptracer_steps} steps planned (as many as fit the largest budget); lampfab: the {args.profile} "
              f"profile, its transport passes timed as they end, then its gradient steps at the budgets. "
              f"Each measured on the solid lens.stl would hold, {photons:,} stratified photons, {VERIFY_PX} px.", "",
              "| method | at s | steps | min r | min SSIM | r per wall | SSIM per wall | light on walls |",
              "|---|---|---|---|---|---|---|---|"]
-    for r in seed_rows + lampfab_rows:
+    for r in ptracer_rows + lampfab_rows:
         lines.append(f"| {r['method']} | {r['budget_s']} | {r['steps']} | {r['r']:.3f} | {r['ssim']:.3f} | "
                      f"{' / '.join(f'{x:.3f}' for x in r['r_walls'])} | "
                      f"{' / '.join(f'{x:.3f}' for x in r['ssim_walls'])} | {r['share']:.1%} |")
     lines.append("")
-    lines.append(f"- seed's best min r within {budgets[-1]:.0f} s: {best_seed:.3f}, seen at the {seed_at:.0f} s budget "
-                 f"(reached after more than {seed_low:.0f} s).")
+    lines.append(f"- ptracer's best min r within {budgets[-1]:.0f} s: {best_ptracer:.3f}, seen at the "
+                 f"{ptracer_at:.0f} s budget (reached after more than {ptracer_low:.0f} s).")
     if lampfab_at:
-        ratio = f"{seed_low / lampfab_at:.1f}x sooner at least" if seed_low else "sooner (no lower bound for seed)"
+        ratio = (f"{ptracer_low / lampfab_at:.1f}x sooner at least" if ptracer_low
+                 else "sooner (no lower bound for ptracer)")
         lines.append(f"- lampfab reaches it within {lampfab_at:.0f} s: {ratio}.")
     else:
         lines.append("- lampfab does not reach it within the budgets.")
@@ -174,8 +176,8 @@ def report(args, budgets, seed_rows, init_rows, splat_rows, seed_steps, photons)
     def within(t):
         return f"within {t:.0f} s" if t else f"not within {budgets[-1]:.0f} s"
 
-    lines.append(f"- time to min r >= {GOAL_R}: lampfab {within(lampfab_goal)}, seed {within(seed_goal)}"
-                 + (f" (at least {budgets[-1] / lampfab_goal:.1f}x longer)" if lampfab_goal and not seed_goal else "")
+    lines.append(f"- time to min r >= {GOAL_R}: lampfab {within(lampfab_goal)}, ptracer {within(ptracer_goal)}"
+                 + (f" (at least {budgets[-1] / lampfab_goal:.1f}x longer)" if lampfab_goal and not ptracer_goal else "")
                  + ".")
     text = "\n".join(lines)
     print(text)

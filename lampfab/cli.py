@@ -22,7 +22,7 @@ STAGE_HELP = {
     "init": "transport-based first lens: each photon's goal by optimal transport, then the surface "
             "that lands it there (init.npz)",
     "optimize": "refine by differentiable photon splatting (Mitsuba + Dr.Jit), or the source's ptracer "
-                "method with [optimize] method = \"seed\" (heightmap.npz)",
+                "method with [optimize] method = \"ptracer\" (heightmap.npz)",
     "solid": "merge outer shell, inner layer and LED bore into one solid (solid.npz)",
     "fabcheck": "manufacturability against the fabrication profile (checks.json, checks.png)",
     "export": "lens.stl, lens.step, lens.glb and design.json, each read back and checked",

@@ -1,7 +1,7 @@
 """The lens as the optics see it: outer surface and caps, with the inner layer as a void.
 
 The LED bore through the base (solid stage) is left out here, so the mesh is cheap to
-rebuild at every step of the seed method.  Without the bore, glass stays under the
+rebuild at every step of the ptracer method.  Without the bore, glass stays under the
 cavity's floor and reflects a little light back up, a faint spot near a wall's centre
 that the made lens does not have.  Figures that must describe the made lens trace the
 solid instead: verify traces the exported STL, the plan and the tolerance study

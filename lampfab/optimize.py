@@ -1,4 +1,4 @@
-"""The source's method (``seed``): Mitsuba ``ptracer`` + Dr.Jit gradients of the outer
+"""The source's method (``ptracer``): Mitsuba's ``ptracer`` + Dr.Jit gradients of the outer
 vertices, a per-view loss, one view per step (cyclic) or all (joint), plain gradient
 descent or Adam, coarse-to-fine x4.
 
@@ -62,7 +62,7 @@ REGROWTH = 1.2
 # whose derivative is undefined; the loss itself finite); the spline's adjoint would
 # spread them to every node.  Up to this share of the vertices they are dropped from
 # that step; more is a real fault.  The full `make bench` on a slow machine stopped at the
-# seed's step 449 this way (bench/RESULTS.md).
+# source's method at its step 449 this way (bench/RESULTS.md).
 MAX_NONFINITE_VERTEX_SHARE = 1e-3
 
 
@@ -196,7 +196,7 @@ class Optimizer:
         level_rate = self.opt.fine_level_rate if spacing > 1 else 1.0
         lr = (self.opt.learning_rate * state.lr_scale * level_rate / spacing
               * anneal_factor(self.opt, state.step))
-        if self.opt.step == "gd":
+        if self.opt.update_rule == "gd":
             return -lr * grad
         b1, b2, eps = 0.9, 0.999, 1e-12
         state.adam_t += 1
@@ -361,7 +361,7 @@ def _fault(loss: float, grad: np.ndarray, best: float) -> str | None:
     return None
 
 
-class SeedOptimizer(Optimizer):
+class PtracerOptimizer(Optimizer):
     """The source's method: Mitsuba ``ptracer`` renders one sensor per wall, Dr.Jit
     differentiates the loss with respect to the outer vertices."""
 

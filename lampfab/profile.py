@@ -67,7 +67,7 @@ class Room:
 @dataclass(frozen=True)
 class Optimize:
     init: str = _spec("transport", choices=("transport", "cylinder"), doc="first design")
-    method: str = _spec("splat", choices=("splat", "seed"),
+    method: str = _spec("splat", choices=("splat", "ptracer"),
                         doc="refinement: photon splatting (fast) or the source's ptracer")
     grid_u: int = _spec(256, 8, 8192, doc="heightmap nodes around (final level)")
     grid_v: int = _spec(64, 4, 4096, doc="heightmap nodes up (final level)")
@@ -77,7 +77,7 @@ class Optimize:
                       doc="per-view loss (si_mse_ssim, multiscale: splat only)")
     loss_weights: tuple = _spec((), doc="weights for l1_weighted, one per wall")
     schedule: str = _spec("cyclic", choices=SCHEDULES, doc="one view per step or all")
-    step: str = _spec("adam", choices=("adam", "gd"), doc="update rule")
+    update_rule: str = _spec("adam", choices=("adam", "gd"), doc="Adam or plain gradient descent")
     backtrack: bool = _spec(False, doc="a step after which the loss rises is taken again from where it "
                                        "started, half as long (joint schedule)")
     learning_rate: float = _spec(0.02, 1e-8, 100.0, doc="mm per step scale")
@@ -85,7 +85,7 @@ class Optimize:
     fine_level_anneal: bool = _spec(False, doc="the finest level's second half shrinks its step linearly "
                                                 "towards zero: its last steps average the photon noise out")
     sensor_px: int = _spec(64, 8, 2048, doc="sensor width in pixels (height from the aspect)")
-    spp: int = _spec(16, 1, 65536, doc="ptracer samples per pixel per step (seed)")
+    spp: int = _spec(16, 1, 65536, doc="samples per pixel per step (ptracer)")
     splat_photons: int = _spec(1_000_000, 1000, 100_000_000, doc="photons per step (splat), one per cell of an "
                                                                      "even grid of directions: rounded down to fill it")
     tessellation: int = _spec(4, 1, 16, doc="mesh vertices per heightmap cell edge (the STL uses the same)")

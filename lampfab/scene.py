@@ -1,6 +1,6 @@
 """The source's Mitsuba scene: the lens, a point light, and per wall a diffuse rectangle
 with a perspective sensor looking straight at it (``ptracer`` cannot connect to an
-orthographic sensor).  Used by the ``seed`` optimizer.
+orthographic sensor).  Used by the ``ptracer`` optimizer.
 
 The lens is one PLY mesh with ``face_normals``: Mitsuba then neither interpolates
 shading normals nor regenerates them when the vertices move, so the optimizer refracts

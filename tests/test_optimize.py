@@ -97,8 +97,8 @@ def test_splat_steps_reduce_the_loss_and_respect_the_slope_limit(mi, tiny_design
     assert len(tilts) == 6 and max_tilt_deg - 1.0 < max(tilts) <= max_tilt_deg + 1e-6
 
 
-def test_seed_method_gives_a_finite_nonzero_gradient(mi, tiny_design, inner_layer, tiny_setup):
-    opt = _optimizer(optimize.SeedOptimizer, tiny_design, inner_layer, tiny_setup, spp=8)
+def test_ptracer_method_gives_a_finite_nonzero_gradient(mi, tiny_design, inner_layer, tiny_setup):
+    opt = _optimizer(optimize.PtracerOptimizer, tiny_design, inner_layer, tiny_setup, spp=8)
     h = np.zeros((tiny_design.optimize.grid_u, tiny_design.optimize.grid_v))
     loss, grad = opt.gradient(h, [0], seed=1)
     assert np.isfinite(loss) and np.all(np.isfinite(grad)) and np.abs(grad).max() > 0

@@ -243,7 +243,7 @@ class Quadratic(optimize.Optimizer):
     """Pulls every node to 1 mm; ``faults`` maps a call number to the loss it returns."""
 
     def __init__(self, design, faults, **changes):
-        opt = dataclasses.replace(design.optimize, **{"levels": 1, "step": "gd", "learning_rate": 0.1, **changes})
+        opt = dataclasses.replace(design.optimize, **{"levels": 1, "update_rule": "gd", "learning_rate": 0.1, **changes})
         super().__init__(surface.Cylinder(45.0, 90.0), None, None, None, 1.49, room.walls(design), [], opt,
                          Limits(20.0, 45.0))
         self.faults, self.calls = faults, 0
@@ -348,7 +348,7 @@ def test_backtracking_starts_each_level_at_the_full_step(tiny_design):
 
 
 def test_backtracking_with_one_view_per_step_is_refused(tiny_design):
-    # The bench's seed method once ran so: every step compared another wall's loss and
+    # The bench's ptracer method once ran so: every step compared another wall's loss and
     # was taken back, and the lens never moved.
     with pytest.raises(ValueError, match="backtrack needs schedule 'joint'"):
         Quadratic(tiny_design, {}, schedule="cyclic", backtrack=True)

@@ -124,7 +124,7 @@ class Build:
         from .. import optimize
         from ..splat import SplatOptimizer
 
-        method = {"seed": optimize.SeedOptimizer, "splat": SplatOptimizer}[opt.method]
+        method = {"ptracer": optimize.PtracerOptimizer, "splat": SplatOptimizer}[opt.method]
         return method(self.cylinder, *inner, self.light, self.fab.ior, self.walls, targets, opt, self.limits)
 
     # -- where each artifact lives ----------------------------------------------------------
