@@ -7,10 +7,13 @@ a stage killed mid-write never leaves a file that Make takes as done.
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import json
 import os
 import platform
+import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -153,6 +156,28 @@ def file_sha256(path) -> str:
     return h.hexdigest()
 
 
+@functools.lru_cache(maxsize=1)
+def git_describe(package: Path = Path(__file__).resolve().parent) -> str | None:
+    """``git describe --always --dirty`` of the git checkout lampfab runs from (the one
+    that tracks ``package``), so a report says which code made it; None where lampfab
+    is not run from a checkout (an installed copy) or git is missing."""
+    git = shutil.which("git")
+    if git is None:
+        return None
+
+    def ask(*args) -> str | None:
+        try:
+            run = subprocess.run([git, "-C", str(package), *args], capture_output=True, text=True, timeout=30)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return run.stdout.strip() if run.returncode == 0 else None
+
+    # A copy installed into a virtual environment inside a checkout is not that checkout's code.
+    if ask("ls-files", "--error-unmatch", "__init__.py") is None:
+        return None
+    return ask("describe", "--always", "--dirty") or None
+
+
 def versions() -> dict:
     out = {"python": sys.version.split()[0], "platform": platform.platform()}
     for pkg in ("lampfab", "mitsuba", "drjit", "manifold3d", "trimesh", "pymeshlab",
@@ -163,8 +188,8 @@ def versions() -> dict:
 
 
 class StageReport:
-    """The JSON report every stage writes: inputs (with hashes), settings, versions,
-    wall time and key figures."""
+    """The JSON report every stage writes: inputs (with hashes), settings, versions and
+    the checkout's ``git describe``, wall time and key figures."""
 
     def __init__(self, stage: str, inputs: dict[str, str], settings: dict, seed: int | None = None):
         self.stage = stage
@@ -176,6 +201,7 @@ class StageReport:
             "seed": seed,
             "settings": settings,
             "versions": versions(),
+            "git_describe": git_describe(),
             "figures": {},
         }
 

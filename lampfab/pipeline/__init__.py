@@ -1,7 +1,7 @@
 """The stages: each reads its inputs from the build folder, calls the library, and
 writes its artifact plus a JSON report (inputs with hashes, resolved settings,
-versions, wall time, key figures).  ``stages/NN_name.py`` and
-``lampfab <stage>`` both call these.
+versions, the checkout's git describe, wall time, key figures).  ``stages/NN_name.py``
+and ``lampfab <stage>`` both call these.
 
 ``build.Build`` owns the build folder: every artifact's path, typed reads and writes,
 and the lens kind it picks once (``kind``: a lamp, or a panel from ``panel.kind``).
