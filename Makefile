@@ -1,6 +1,7 @@
 # lampfab: `make lamp TARGET=image.png` designs a caustic lamp into build/<NAME>/.
 # Targets are files; each stage writes its report last, so a killed stage is redone.
-# Phony names: lamp, test, clean, bench, help, and one alias per stage (make optimize).
+# Phony names: lamp, setup, test, test-fast, clean, bench, help, and one alias per stage
+# (make optimize).
 
 TARGET  ?= examples/apple.png
 TEXT    ?=
@@ -28,7 +29,7 @@ TARGETS = --target "$(TARGET)" --target-front "$(TARGET_FRONT)" --target-left "$
           --text "$(TEXT)" --panorama "$(PANORAMA)"
 
 .DELETE_ON_ERROR:
-.PHONY: lamp test clean bench help prepare plan init optimize solid fabcheck export verify FORCE
+.PHONY: lamp setup test test-fast clean bench help prepare plan init optimize solid fabcheck export verify FORCE
 
 lamp: $(B)/report.html
 	@$(PY) -m lampfab.cli summary $(ARGS)
@@ -38,15 +39,17 @@ help:
 	@echo "make lamp TEXT=\"Happy birthday\"      words instead of an image (build/text/)"
 	@echo "make lamp PANORAMA=examples/panorama.png   a 360° panorama wrapped around the room"
 	@echo "make <stage> TARGET=..   one stage and what it needs: prepare plan init optimize solid fabcheck export verify"
-	@echo "make test | make bench | make clean"
+	@echo "make test | make test-fast (without the slow tests) | make bench | make clean"
 	@echo "variables: TARGET_FRONT/LEFT/RIGHT/FLOOR (per-wall images), ALLOW_FAIL=1 (go on after a failed check),"
 	@echo "           BUILD=build (output folder), NAME (default: the image's name)"
-	@echo "make .venv/.installed    the setup alone (system packages, .venv/, lampfab)"
+	@echo "make setup               the setup alone (system packages, .venv/, lampfab)"
 	@echo "without make: .venv/bin/lampfab --help, .venv/bin/lampfab <stage> --help"
 	@$(PY) -m lampfab.cli profiles 2>/dev/null \
 	  || echo "profiles: profiles/*.toml and profiles/fab/*.toml (listed here once the first make has installed lampfab)"
 
 # -- setup: system libraries, virtual environment, Python packages ----------------------
+setup: $(READY)
+
 $(READY): pyproject.toml stages/00_setup.sh
 	bash stages/00_setup.sh
 	python3 -m venv $(VENV)
@@ -96,6 +99,9 @@ verify: $(B)/report.html
 # -- development -----------------------------------------------------------------------
 test: $(READY)
 	$(PY) -m pytest -q
+
+test-fast: $(READY)
+	$(PY) -m pytest -q -m "not slow"
 
 bench: $(READY)
 	$(PY) bench/bench_methods.py --record

@@ -1,4 +1,5 @@
-"""Shared fixtures: tiny designs, seeded randomness, the Mitsuba variant."""
+"""What the tests share: the tiny profiles, the designs and small lenses built from them,
+seeded randomness, the Mitsuba variant."""
 
 from pathlib import Path
 
@@ -7,8 +8,37 @@ import pytest
 
 from lampfab import profile, room, surface
 
+from tests.helpers import CYL, bumps, inner
+
 DATA = Path(__file__).parent / "data"
-TINY = DATA / "tiny.toml"
+
+
+@pytest.fixture(scope="session")
+def tiny_profile() -> Path:
+    """The lamp's tiny design profile: the whole pipeline in seconds."""
+    return DATA / "tiny.toml"
+
+
+@pytest.fixture(scope="session")
+def tiny_panel_profile() -> Path:
+    """The panel's tiny design profile."""
+    return DATA / "tiny_panel.toml"
+
+
+@pytest.fixture
+def tiny_with(tiny_profile, tmp_path):
+    """``tiny_with(name, lens="", room_="", replace=())``: the tiny profile written to
+    ``tmp_path / name`` with ``lens`` and ``room_`` lines added to those tables and each
+    (old, new) of ``replace`` applied (old must be there); returns its path."""
+    def write(name: str, lens: str = "", room_: str = "", replace: tuple = ()) -> Path:
+        text = tiny_profile.read_text()
+        for old, new in replace:
+            assert old in text, old
+            text = text.replace(old, new)
+        path = tmp_path / name
+        path.write_text(text.replace("[lens]\n", f"[lens]\n{lens}\n").replace("[room]\n", f"[room]\n{room_}\n"))
+        return path
+    return write
 
 
 @pytest.fixture(scope="session")
@@ -25,8 +55,13 @@ def rng():
 
 
 @pytest.fixture(scope="session")
-def tiny_design():
-    return profile.load_design(str(TINY))
+def tiny_design(tiny_profile):
+    return profile.load_design(str(tiny_profile))
+
+
+@pytest.fixture(scope="session")
+def tiny_panel_design(tiny_panel_profile):
+    return profile.load_design(str(tiny_panel_profile))
 
 
 @pytest.fixture(scope="session")
@@ -42,8 +77,17 @@ def cyl(default_design):
 
 @pytest.fixture(scope="session")
 def inner_layer(default_design):
-    from lampfab import inner
+    from lampfab import inner as inner_mod
 
     lens = default_design.lens
-    return inner.load_inner(None, 1.0, room.light_position(default_design), lens.outer_radius_mm,
-                            lens.max_offset_mm, lens.height_mm)
+    return inner_mod.load_inner(None, 1.0, room.light_position(default_design), lens.outer_radius_mm,
+                                lens.max_offset_mm, lens.height_mm)
+
+
+@pytest.fixture(scope="session")
+def small_lens():
+    """The small lens of ``helpers`` (CYL, bumps, inner) as a solid with a 6 mm bore."""
+    from lampfab import solid
+
+    v, f = inner()
+    return solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=6.0)

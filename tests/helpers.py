@@ -1,8 +1,12 @@
-"""What several test modules share: the repository's paths, `make` as a user runs it, and
-a small lens (CYL, bumps, inner) for the solid, STEP and fabrication tests."""
+"""Plain helpers the tests share: the repository's paths, `make` and the command line as
+a user runs them, and a small lens (CYL, bumps, inner) for the solid, STEP and
+fabrication tests.  Fixtures are in conftest.py."""
 
+import contextlib
+import io
 import os
 import subprocess
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +15,6 @@ from lampfab import surface
 from lampfab.inner import default_inner_mesh
 
 ROOT = Path(__file__).resolve().parent.parent
-TINY = ROOT / "tests" / "data" / "tiny.toml"
 
 # The Makefile reads these with ?=: a developer's exported TEXT or ALLOW_FAIL would change
 # every build the tests make.
@@ -19,21 +22,32 @@ _MAKE_VARIABLES = ("TARGET", "TEXT", "PANORAMA", "NAME", "PROFILE", "FAB", "ALLO
                    "TARGET_FRONT", "TARGET_LEFT", "TARGET_RIGHT", "TARGET_FLOOR")
 
 
-def tiny_with(path: Path, lens: str = "", room_: str = "", replace: tuple = ()) -> Path:
-    """The tiny profile written to ``path`` with ``lens`` and ``room_`` lines added to
-    those tables and each (old, new) of ``replace`` applied (old must be there)."""
-    text = TINY.read_text()
-    for old, new in replace:
-        assert old in text, old
-        text = text.replace(old, new)
-    path.write_text(text.replace("[lens]\n", f"[lens]\n{lens}\n").replace("[room]\n", f"[room]\n{room_}\n"))
-    return path
-
-
 def make(*args) -> subprocess.CompletedProcess:
     """``make`` in the repository with ``args`` (targets and VAR=value), its output captured."""
     env = {k: v for k, v in os.environ.items() if k not in _MAKE_VARIABLES}
     return subprocess.run(["make", "--no-print-directory", *args], cwd=ROOT, capture_output=True, text=True, env=env)
+
+
+@dataclass
+class Run:
+    """What a command line call gave: its exit code and what it printed."""
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+def cli(*args) -> Run:
+    """``lampfab ARGS`` in this process (``lampfab.cli.main``), its output captured; an
+    argparse exit (``--help``, a usage error) gives its code like any other."""
+    from lampfab.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main([str(a) for a in args])
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else 1
+    return Run(code, out.getvalue(), err.getvalue())
 
 
 CYL = surface.Cylinder(radius_mm=40.0, height_mm=80.0)

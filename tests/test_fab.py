@@ -1,45 +1,13 @@
-"""Files a shop accepts and what finishing may cost: ADMesh on the exported STL, the
-tolerance study and the post-processing guidance, on small lenses (seconds)."""
-
-import shutil
+"""What finishing may cost: the tolerance study and the post-processing guidance, on
+small lenses (seconds)."""
 
 import numpy as np
 import pytest
 
-from lampfab import guidance, lens, room, solid, tolerance_study, trace
-from lampfab.export import stl
+from lampfab import guidance, lens, room, tolerance_study, trace
 from lampfab.profile import load_fabrication
 
-from helpers import CYL, bumps, inner
-
-
-@pytest.fixture(scope="module")
-def small_lens():
-    v, f = inner()
-    return solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=6.0)
-
-
-def test_admesh_is_installed_by_the_setup():
-    # stages/00_setup.sh installs it; export relies on it to prove no slicer repair is needed.
-    assert shutil.which("admesh"), "admesh missing: run bash stages/00_setup.sh"
-
-
-def test_exported_stl_needs_no_repair_in_admesh(small_lens, tmp_path):
-    path = tmp_path / "lens.stl"
-    stl.write_stl(path, small_lens.vertices, small_lens.faces)
-    report = stl.admesh_check(path)
-    assert report["repairs"] == 0 and report["parts"] == 1 and report["disconnected_facets"] == 0
-    assert set(report) >= {"degenerate_facets", "edges_fixed", "facets_reversed", "normals_fixed"}
-
-
-def test_admesh_sees_a_flipped_facet_and_a_hole(small_lens, tmp_path):
-    faces = small_lens.faces.copy()
-    faces[10] = faces[10, ::-1]
-    stl.write_stl(tmp_path / "flipped.stl", small_lens.vertices, faces)
-    flipped = stl.admesh_check(tmp_path / "flipped.stl")
-    assert flipped["repairs"] > 0 and flipped["facets_reversed"] + flipped["normals_fixed"] > 0
-    stl.write_stl(tmp_path / "hole.stl", small_lens.vertices, small_lens.faces[1:])
-    assert stl.admesh_check(tmp_path / "hole.stl")["disconnected_facets"] > 0
+from tests.helpers import CYL, bumps, inner
 
 
 def test_error_field_is_smooth_periodic_and_peaks_at_one():

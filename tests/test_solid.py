@@ -1,40 +1,34 @@
-"""The lens solid (manifold3d) and the STL round trip, on a small lens (fast)."""
+"""The lens solid (manifold3d), on a small lens (fast)."""
 
 import numpy as np
 import pytest
 
 from lampfab import solid, surface
-from lampfab.export import stl
 from lampfab.errors import GeometryError, LampfabError
 from lampfab.inner import winding_number
 
-from helpers import CYL, bumps, inner
-
-@pytest.fixture(scope="module")
-def lens():
-    v, f = inner()
-    return solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=6.0)
+from tests.helpers import CYL, bumps, inner
 
 
-def test_solid_is_closed_one_body_with_expected_volume(lens):
-    topo = solid.edge_check(lens.faces)
+def test_solid_is_closed_one_body_with_expected_volume(small_lens):
+    topo = solid.edge_check(small_lens.faces)
     assert topo == {"watertight": True, "winding_consistent": True, "components": 1, "euler": 2}
-    assert lens.genus == 0
-    assert lens.vertices.dtype == np.float64 and lens.faces.dtype == np.int64
-    assert solid.mesh_volume(lens.vertices, lens.faces) == pytest.approx(lens.volume_mm3, rel=1e-9)
+    assert small_lens.genus == 0
+    assert small_lens.vertices.dtype == np.float64 and small_lens.faces.dtype == np.int64
+    assert solid.mesh_volume(small_lens.vertices, small_lens.faces) == pytest.approx(small_lens.volume_mm3, rel=1e-9)
     # Independent bookkeeping: outer mesh - inner cylinder - bore polygon prism under the floor.
     ov, of = surface.closed_outer_mesh(CYL, bumps(), 2)
     iv, inf = inner()
-    bore = lens.bore
+    bore = small_lens.bore
     assert (bore.z_floor_mm, bore.radius_mm) == (12.0, 6.0)
     expected = solid.mesh_volume(ov, of) - solid.mesh_volume(iv, inf) - bore.polygon_area_mm2 * 12.0
-    assert lens.volume_mm3 == pytest.approx(expected, rel=1e-9)
-    assert lens.vertices[:, 2].min() == pytest.approx(0.0, abs=1e-12)
-    assert lens.vertices[:, 2].max() == pytest.approx(80.0, abs=1e-12)
+    assert small_lens.volume_mm3 == pytest.approx(expected, rel=1e-9)
+    assert small_lens.vertices[:, 2].min() == pytest.approx(0.0, abs=1e-12)
+    assert small_lens.vertices[:, 2].max() == pytest.approx(80.0, abs=1e-12)
 
 
-def test_cavity_opens_through_the_base(lens):
-    v, f = lens.vertices, lens.faces
+def test_cavity_opens_through_the_base(small_lens):
+    v, f = small_lens.vertices, small_lens.faces
     # Up the axis from below the base to the LED: never inside the glass.
     for z in (-0.5, 0.01, 6.0, 11.99, 12.01, 40.0):
         assert abs(winding_number(v, f, np.array([0.0, 0.0, z]))) < 1e-6, z
@@ -112,23 +106,3 @@ def test_cavity_mesh_is_inner_plus_bore():
     expected = solid.mesh_volume(v, f) + bore.polygon_area_mm2 * (bore.z_floor_mm - bore.z_bottom_mm)
     assert solid.mesh_volume(cv, cf) == pytest.approx(expected, rel=1e-9)
     assert cv[:, 2].min() == pytest.approx(-1.0)
-
-
-def test_stl_round_trip(lens, tmp_path):
-    path = tmp_path / "lens.stl"
-    size = stl.write_stl(path, lens.vertices, lens.faces)
-    assert path.stat().st_size == size == 84 + 50 * len(lens.faces)      # binary STL
-    assert not list(tmp_path.glob(".lens.stl.*"))                         # no temporary left
-    v, f = stl.read_stl(path)
-    assert (len(v), len(f)) == (len(lens.vertices), len(lens.faces))
-    assert solid.edge_check(f) == {"watertight": True, "winding_consistent": True, "components": 1, "euler": 2}
-    assert solid.mesh_volume(v, f) == pytest.approx(lens.volume_mm3, rel=1e-6)
-
-
-def test_read_stl_errors(tmp_path):
-    with pytest.raises(LampfabError, match="not found"):
-        stl.read_stl(tmp_path / "missing.stl")
-    bad = tmp_path / "bad.stl"
-    bad.write_bytes(b"\x00" * 10)
-    with pytest.raises(LampfabError):
-        stl.read_stl(bad)

@@ -148,9 +148,9 @@ def cavity_access(iv: np.ndarray, fi: np.ndarray, fab: Fabrication) -> CheckResu
             f"{widest:.2f} mm from the axis): {value:.1f} mm^2 of cavity surface faces up, hidden from a "
             f"straight tool moving along the axis.")
     if value > 0:
-        note += (f" Open the floor with a counterbore (mount_radius_mm >= the floor's radius + 0.5 mm), give "
-                 f"the inner layer no surface that widens upward, or make the lens in two parts bonded with "
-                 f"index-matched adhesive.")
+        note += (" Open the floor with a counterbore (mount_radius_mm >= the floor's radius + 0.5 mm), give "
+                 "the inner layer no surface that widens upward, or make the lens in two parts bonded with "
+                 "index-matched adhesive.")
     else:
         note += (" The cavity is bored from the base (a boring bar or long end mill, the roof with a "
                  "pointed or ball tool); its walls refract the light too and need the same polish.")

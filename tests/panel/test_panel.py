@@ -2,30 +2,28 @@
 with a tiny panel profile."""
 
 import json
-import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from lampfab import profile, room, solid
+from lampfab.errors import LampfabError
 from lampfab.panel import geometry as panel
 from lampfab.panel import transport as panel_transport
-from lampfab.errors import LampfabError
 
-ROOT = Path(__file__).resolve().parent.parent
-TINY = ROOT / "tests" / "data" / "tiny_panel.toml"
+from tests.helpers import make
+
 SHAPE = panel.PanelShape(100.0, 100.0, 10.0)
 
 
-def _wall():
-    return room.walls(profile.load_design(str(TINY)))[0]
+@pytest.fixture(scope="module")
+def wall(tiny_panel_design):
+    return room.walls(tiny_panel_design)[0]
 
 
-def test_transport_sends_the_light_where_the_target_has_it():
+def test_transport_sends_the_light_where_the_target_has_it(wall):
     """A target lit only in its upper-left quarter: every node's light lands there, and
     the light's centroid on the wall is the quarter's centre."""
-    wall = _wall()
     target = np.zeros((16, 16))
     target[:8, :8] = 1.0
     goal, err = panel_transport.target_map(SHAPE, wall, target, (17, 17))
@@ -40,10 +38,9 @@ def test_transport_sends_the_light_where_the_target_has_it():
     assert np.sum(mass * z) == pytest.approx(top - 0.25 * wall.height_mm, abs=10)
 
 
-def test_designed_relief_refracts_each_node_to_its_goal():
+def test_designed_relief_refracts_each_node_to_its_goal(wall):
     """The relief's own normals send the beam where the transport asked (finite
     distance included), and a uniform target makes a diverging (concave) relief."""
-    wall = _wall()
     target = np.ones((16, 16))
     heights, figs = panel_transport.design(SHAPE, wall, target, 1.5, (17, 17), 3, 2, 1e-3, 8.0, 45.0,
                                            log=lambda _: None)
@@ -72,25 +69,26 @@ def test_closed_mesh_is_one_outward_solid_of_the_right_volume():
     assert solid.mesh_volume(v, f) == pytest.approx(expected, rel=1e-3)
 
 
-def test_panel_profile_is_strict(tmp_path):
+def test_panel_profile_is_strict(tmp_path, tiny_panel_profile):
+    tiny = tiny_panel_profile.read_text()
     bad = tmp_path / "bad.toml"
-    bad.write_text(TINY.read_text().replace('kind = "panel"', 'kind = "panel"\nouter_radius_mm = 40.0'))
+    bad.write_text(tiny.replace('kind = "panel"', 'kind = "panel"\nouter_radius_mm = 40.0'))
     with pytest.raises(LampfabError, match=r"\[lens\] outer_radius_mm applies only to kind"):
         profile.load_design(str(bad))
-    bad.write_text(TINY.read_text().replace("max_relief_mm = 4.0", "max_relief_mm = 12.0"))
+    bad.write_text(tiny.replace("max_relief_mm = 4.0", "max_relief_mm = 12.0"))
     with pytest.raises(LampfabError, match="max_relief_mm 12.0 must be below thickness_mm"):
         profile.load_design(str(bad))
-    bad.write_text(TINY.read_text().replace('kind = "panel"\n', ""))
+    bad.write_text(tiny.replace('kind = "panel"\n', ""))
     with pytest.raises(LampfabError, match=r"\[panel\] applies only"):
         profile.load_design(str(bad))
 
 
 @pytest.mark.slow
-def test_make_lamp_with_a_panel(tmp_path):
+@pytest.mark.e2e
+def test_make_lamp_with_a_panel(tmp_path, tiny_panel_profile):
     from lampfab.export import step_file, stl
 
-    run = subprocess.run(["make", "--no-print-directory", "lamp", f"BUILD={tmp_path}", "NAME=apple",
-                          f"PROFILE={TINY}"], cwd=ROOT, capture_output=True, text=True)
+    run = make("lamp", f"BUILD={tmp_path}", "NAME=apple", f"PROFILE={tiny_panel_profile}")
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     out = tmp_path / "apple"
     for name in ["lens.stl", "lens.step", "lens.glb", "design.json", "checks.json", "checks.png", "report.html"]:

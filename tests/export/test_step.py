@@ -7,20 +7,18 @@ from lampfab import solid, surface, tolerances
 from lampfab.export import bspline, step_file, stl
 from lampfab.errors import GeometryError, LampfabError
 
-from helpers import CYL, bumps, inner
+from tests.helpers import CYL, bumps, inner
 
 SAMPLES = (64, 15)          # aligned with the 32 x 8 heightmap: 2 per cell in u and v
 
 
 @pytest.fixture(scope="module")
-def written(tmp_path_factory):
+def written(tmp_path_factory, small_lens):
     folder = tmp_path_factory.mktemp("step")
-    v, f = inner()
-    mesh = solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=6.0)
-    stl.write_stl(folder / "lens.stl", mesh.vertices, mesh.faces)
+    stl.write_stl(folder / "lens.stl", small_lens.vertices, small_lens.faces)
     sv, sf = stl.read_stl(folder / "lens.stl")
-    info = step_file.write_step(folder / "lens.step", CYL, bumps(), v, f, 6.0, *SAMPLES,
-                                expected_volume_mm3=mesh.volume_mm3)
+    info = step_file.write_step(folder / "lens.step", CYL, bumps(), *inner(), 6.0, *SAMPLES,
+                                expected_volume_mm3=small_lens.volume_mm3)
     return folder, info, solid.mesh_volume(sv, sf)
 
 

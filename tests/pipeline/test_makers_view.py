@@ -9,7 +9,6 @@ import json
 import re
 import shutil
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -18,7 +17,7 @@ from PIL import Image
 from lampfab import inner, profile, room, targets
 from lampfab.errors import LampfabError
 
-from helpers import ROOT, TINY, make
+from tests.helpers import ROOT, cli, make
 
 
 # -- text ---------------------------------------------------------------------------
@@ -71,14 +70,15 @@ def test_panorama_columns_land_on_the_walls_they_face():
 
 # -- end to end ---------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def text_lamp(tmp_path_factory):
+def text_lamp(tmp_path_factory, tiny_profile):
     build = tmp_path_factory.mktemp("text")
-    run = make("lamp", f"BUILD={build}", 'TEXT=Hi there', f"PROFILE={TINY}")
+    run = make("lamp", f"BUILD={build}", 'TEXT=Hi there', f"PROFILE={tiny_profile}")
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     return build / "text", run
 
 
 @pytest.mark.slow
+@pytest.mark.e2e
 def test_text_lamp_end_to_end(text_lamp):
     out, run = text_lamp
     prepared = json.loads((out / "prepare.json").read_text())["figures"]
@@ -98,7 +98,8 @@ def test_text_lamp_end_to_end(text_lamp):
 
 
 @pytest.mark.slow
-def test_optimization_gif_and_lens_glb(text_lamp):
+@pytest.mark.e2e
+def test_optimization_gif_and_lens_glb(text_lamp, tiny_design):
     import trimesh
 
     from lampfab.export import stl
@@ -106,7 +107,7 @@ def test_optimization_gif_and_lens_glb(text_lamp):
     out, _ = text_lamp
     with Image.open(out / "optimization.gif") as gif:
         frames = gif.n_frames
-    iterations = profile.load_design(str(TINY)).optimize.iterations
+    iterations = tiny_design.optimize.iterations
     assert frames == iterations + 1  # step 0 and each step (tiny previews every step)
     scene = trimesh.load(out / "lens.glb")
     mesh = next(iter(scene.geometry.values()))
@@ -139,6 +140,8 @@ window.addEventListener("load", () => {
 
 
 @pytest.mark.slow
+@pytest.mark.e2e
+@pytest.mark.browser
 def test_report_loads_every_image_in_a_real_browser(text_lamp, tmp_path):
     """Chromium opens report.html offline; every <img> decodes to its real size."""
     out, _ = text_lamp
@@ -165,8 +168,10 @@ def test_report_loads_every_image_in_a_real_browser(text_lamp, tmp_path):
 
 
 @pytest.mark.slow
-def test_panorama_lamp_end_to_end(tmp_path):
-    run = make("lamp", f"BUILD={tmp_path}", f"PANORAMA={ROOT / 'examples' / 'panorama.png'}", f"PROFILE={TINY}")
+@pytest.mark.e2e
+def test_panorama_lamp_end_to_end(tmp_path, tiny_profile):
+    run = make("lamp", f"BUILD={tmp_path}", f"PANORAMA={ROOT / 'examples' / 'panorama.png'}",
+               f"PROFILE={tiny_profile}")
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     out = tmp_path / "panorama"
     prepared = json.loads((out / "prepare.json").read_text())
@@ -188,10 +193,9 @@ def _wall_pearsons(out) -> list[float]:
     return [wall["pearson"] for wall in walls.values()]
 
 
-def test_text_and_panorama_together_is_one_line(tmp_path):
-    run = subprocess.run([sys.executable, "-m", "lampfab.cli", "prepare", "--out", str(tmp_path / "b"),
-                          "--profile", str(TINY), "--text", "Hi", "--panorama",
-                          str(ROOT / "examples" / "panorama.png")], cwd=ROOT, capture_output=True, text=True)
+def test_text_and_panorama_together_is_one_line(tmp_path, tiny_profile):
+    run = cli("prepare", "--out", tmp_path / "b", "--profile", tiny_profile, "--text", "Hi", "--panorama",
+              ROOT / "examples" / "panorama.png")
     assert run.returncode == 2 and run.stderr.count("\n") == 1 and "choose one" in run.stderr
 
 

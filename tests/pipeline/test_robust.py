@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from lampfab import optimize, profile, resources, room, surface
+from lampfab import optimize, resources, room, surface
 from lampfab.errors import LampfabError
 from lampfab.limits import Limits
 
-from helpers import ROOT, TINY, make, tiny_with
+from tests.helpers import ROOT, cli, make
 
 
 def files_under(folder: Path) -> list[Path]:
@@ -133,11 +133,11 @@ IMAGE_CASES = {
 
 
 @pytest.mark.parametrize("case", IMAGE_CASES)
-def test_bad_image_one_line_and_no_files(tmp_path, case):
+def test_bad_image_one_line_and_no_files(tmp_path, case, tiny_profile):
     make_target, words = IMAGE_CASES[case]
     target = make_target(tmp_path)
     build = tmp_path / "build"
-    run = make("prepare", f"BUILD={build}", "NAME=bad", f"PROFILE={TINY}", f"TARGET={target}")
+    run = make("prepare", f"BUILD={build}", "NAME=bad", f"PROFILE={tiny_profile}", f"TARGET={target}")
     assert_one_clear_line(run, *words)
     assert files_under(build) == []
 
@@ -146,9 +146,9 @@ def test_bad_image_one_line_and_no_files(tmp_path, case):
     (["TEXT=Hi", "PANORAMA=examples/panorama.png"], ["TEXT and PANORAMA both given", "choose one"]),
     (["NAME=nothing", "TARGET=", "TARGET_FRONT=examples/apple.png"], ["no target image given", "TARGET=", "TEXT="]),
 ], ids=["text and panorama", "TARGET emptied, one wall given"])
-def test_contradicting_or_missing_targets_one_line_and_no_files(tmp_path, variables, words):
+def test_contradicting_or_missing_targets_one_line_and_no_files(tmp_path, variables, words, tiny_profile):
     build = tmp_path / "build"
-    run = make("prepare", f"BUILD={build}", f"PROFILE={TINY}", *variables)
+    run = make("prepare", f"BUILD={build}", f"PROFILE={tiny_profile}", *variables)
     assert_one_clear_line(run, *words)
     assert files_under(build) == []
 
@@ -177,12 +177,12 @@ PROFILE_CASES = {
 
 
 @pytest.mark.parametrize("case", PROFILE_CASES)
-def test_bad_profile_one_line_and_no_files(tmp_path, case):
+def test_bad_profile_one_line_and_no_files(tmp_path, case, tiny_with):
     spec, words = PROFILE_CASES[case]
     lens = spec.get("lens", "")
     if "inner" in spec:
         lens = f"inner_mesh = '{_inner_stl(tmp_path / 'inner.stl', spec['inner'])}'"
-    bad = tiny_with(tmp_path / "bad profile é.toml", lens, spec.get("room_", ""), spec.get("replace", ()))
+    bad = tiny_with("bad profile é.toml", lens, spec.get("room_", ""), spec.get("replace", ()))
     build = tmp_path / "build"
     run = make("prepare", f"BUILD={build}", "NAME=bad", f"PROFILE={bad}",
                f"TARGET={_png(tmp_path / 'disk.png', _disk())}")
@@ -190,17 +190,17 @@ def test_bad_profile_one_line_and_no_files(tmp_path, case):
     assert files_under(build) == []
 
 
-def test_bad_fabrication_profile(tmp_path):
+def test_bad_fabrication_profile(tmp_path, tiny_profile):
     fab = tmp_path / "my printer.toml"
     fab.write_text((ROOT / "profiles" / "fab" / "sla_resin.toml").read_text() + "\nnozzle_mm = 0.4\n")
     build = tmp_path / "build"
-    run = make("prepare", f"BUILD={build}", f"PROFILE={TINY}", f"FAB={fab}",
+    run = make("prepare", f"BUILD={build}", f"PROFILE={tiny_profile}", f"FAB={fab}",
                f"TARGET={_png(tmp_path / 'disk.png', _disk())}")
     assert_one_clear_line(run, str(fab), "nozzle_mm", "unknown key")
     assert files_under(build) == []
 
 
-def test_unicode_spaces_16bit_and_palette_targets_are_accepted(tmp_path):
+def test_unicode_spaces_16bit_and_palette_targets_are_accepted(tmp_path, tiny_profile):
     """The alpha, 16-bit and palette rules of lampfab.image, through make with awkward paths."""
     folder = tmp_path / "my pictures ü"
     folder.mkdir()
@@ -209,7 +209,7 @@ def test_unicode_spaces_16bit_and_palette_targets_are_accepted(tmp_path):
     palette = folder / "palette.png"
     Image.fromarray(_disk()).convert("P").save(palette)
     build = tmp_path / "build"
-    run = make("prepare", f"BUILD={build}", f"PROFILE={TINY}", f"TARGET={main}", f"TARGET_LEFT={deep}",
+    run = make("prepare", f"BUILD={build}", f"PROFILE={tiny_profile}", f"TARGET={main}", f"TARGET_LEFT={deep}",
                f"TARGET_RIGHT={palette}")
     assert run.returncode == 0, run.stderr[-2000:]
     out = build / "zoë's_lamp"
@@ -222,8 +222,8 @@ def test_unicode_spaces_16bit_and_palette_targets_are_accepted(tmp_path):
         assert (out / "targets" / f"{wall}.png").is_file()
 
 
-def test_memory_check_names_the_keys(monkeypatch):
-    design = profile.load_design(str(TINY))
+def test_memory_check_names_the_keys(monkeypatch, tiny_design):
+    design = tiny_design
     monkeypatch.setattr(resources, "available_bytes", lambda: 1e6)
     with pytest.raises(LampfabError, match=r"optimize: needs about .* GB of memory \(25,000 photons from "
                                            r"\[optimize\] splat_photons \(1 in 4 also traced across the cavity\) "
@@ -231,11 +231,36 @@ def test_memory_check_names_the_keys(monkeypatch):
         resources.check_memory("optimize", design)
     monkeypatch.setattr(resources, "available_bytes", lambda: 64e9)
     resources.check_memory("optimize", design)
+    monkeypatch.setattr(resources, "available_bytes", lambda: None)  # unknown: never a reason to stop
+    resources.check_memory("optimize", design)
 
 
-def test_available_memory_is_read():
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc/meminfo is Linux's")
+def test_available_memory_is_read_on_linux():
+    meminfo = {line.split(":")[0]: float(line.split()[1]) * 1024
+               for line in Path("/proc/meminfo").read_text().splitlines()}
     free = resources.available_bytes()
-    assert free is None or 1e7 < free < 1e14
+    assert free is not None and 1e7 < free <= meminfo["MemTotal"]
+
+
+@pytest.mark.parametrize("files, free", [
+    ({}, 8e9),
+    ({"sys/fs/cgroup/memory.max": "4000000000", "sys/fs/cgroup/memory.current": "1000000000"}, 3e9),
+    ({"sys/fs/cgroup/memory.max": "max", "sys/fs/cgroup/memory.current": "1000000000"}, 8e9),
+    ({"sys/fs/cgroup/memory/memory.limit_in_bytes": "2000000000",
+      "sys/fs/cgroup/memory/memory.usage_in_bytes": "500000000"}, 1.5e9),
+    ({"sys/fs/cgroup/memory/memory.limit_in_bytes": str(2**63 - 4096),
+      "sys/fs/cgroup/memory/memory.usage_in_bytes": "500000000"}, 8e9),
+], ids=["no container", "cgroup v2 limit", "cgroup v2 without limit", "cgroup v1 limit", "cgroup v1 without limit"])
+def test_a_container_limit_lowers_the_available_memory(monkeypatch, tmp_path, files, free):
+    """MemAvailable, lowered to what a container's limit leaves (the files as the kernel
+    writes them, under a stand-in root)."""
+    files = {"proc/meminfo": "MemTotal:       16000000 kB\nMemAvailable:    7812500 kB\n", **files}
+    for name, text in files.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(text + "\n")
+    monkeypatch.setattr(resources, "Path", lambda path: tmp_path / str(path).lstrip("/"))
+    assert resources.available_bytes() == pytest.approx(free)
 
 
 # -- numerical faults --------------------------------------------------------------------
@@ -361,12 +386,11 @@ def test_a_fault_that_stays_stops_with_a_message(tiny_design):
         _run(Quadratic(tiny_design, always, iterations=6, checkpoint_every=2))
 
 
-def test_nan_in_the_first_lens_is_refused(tmp_path):
+def test_nan_in_the_first_lens_is_refused(tmp_path, tiny_profile):
     heights = np.zeros((32, 9))
     heights[3, 4] = np.nan
     np.savez(tmp_path / "init.npz", heights=heights)
-    run = subprocess.run([sys.executable, "-m", "lampfab.cli", "optimize", "--out", str(tmp_path), "--profile",
-                          str(TINY)], cwd=ROOT, capture_output=True, text=True)
+    run = cli("optimize", "--out", tmp_path, "--profile", tiny_profile)
     assert_one_clear_line(run, "init.npz", "1 heights are NaN or Inf", "re-run init")
     assert files_under(tmp_path) == [tmp_path / "init.npz"]
 
@@ -397,12 +421,13 @@ def _checkpoint_step(out: Path) -> int:
 
 
 @pytest.mark.slow
-def test_interrupted_runs_resume_to_the_same_bytes_as_an_uninterrupted_one(tmp_path):
+@pytest.mark.e2e
+def test_interrupted_runs_resume_to_the_same_bytes_as_an_uninterrupted_one(tmp_path, tiny_with):
     """Two builds from scratch with one seed; the second is stopped by Ctrl-C (SIGINT),
     then SIGTERM, then killed with SIGKILL, and each time resumed.  Every artifact
     matches bit for bit."""
-    prof = tiny_with(tmp_path / "resume.toml", replace=(("iterations = 2", "iterations = 24"),
-                                                         ("preview_every = 1", "preview_every = 1000")))
+    prof = tiny_with("resume.toml", replace=(("iterations = 2", "iterations = 24"),
+                                              ("preview_every = 1", "preview_every = 1000")))
     outs = []
     for name in ("straight", "stopped"):
         run = make("init", f"BUILD={tmp_path / name}", "NAME=apple", f"PROFILE={prof}")

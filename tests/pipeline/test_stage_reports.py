@@ -7,7 +7,7 @@ import pytest
 
 from lampfab import artifacts
 
-from helpers import ROOT
+from tests.helpers import ROOT
 
 GIT = shutil.which("git")
 

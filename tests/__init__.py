@@ -1,0 +1,1 @@
+"""The tests, laid out like lampfab: one folder per package, flat modules at the top."""

@@ -1,0 +1,1 @@
+"""Tests of lampfab.checks: the fabrication checks."""

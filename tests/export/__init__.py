@@ -1,0 +1,1 @@
+"""Tests of lampfab.export: the STL, STEP and glTF files."""

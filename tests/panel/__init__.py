@@ -1,0 +1,1 @@
+"""Tests of lampfab.panel: the source's prior-work scene."""
