@@ -85,6 +85,13 @@ def test_the_cycle_finder_names_a_circle():
     assert _cycle({"a": {"b"}, "b": set()}) is None
 
 
+def test_every_folder_of_modules_is_a_package():
+    """setuptools installs only folders with an ``__init__.py``; an editable install would
+    not show a missing one."""
+    folders = {path.parent for path in _modules().values()}
+    assert sorted(str(f) for f in folders if not (f / "__init__.py").is_file()) == []
+
+
 def test_no_module_is_longer_than_the_house_allows():
     long = {name: n for name, path in _modules().items()
             if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_LINES}
