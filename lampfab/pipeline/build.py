@@ -32,6 +32,7 @@ import numpy as np
 
 from .. import artifacts, profile, room, surface
 from ..errors import LampfabError
+from .kind import Lamp, LensKind
 
 # The stages in the order make runs them.
 STAGES = ("prepare", "plan", "init", "optimize", "solid", "fabcheck", "export", "verify")
@@ -57,14 +58,12 @@ class Build:
 
     # -- the lens and its room, as the stages use them ------------------------------------
     @functools.cached_property
-    def kind(self):
-        """What the stages do differently for this lens (``kind.LensKind``)."""
+    def kind(self) -> LensKind:
+        """What the stages do differently for this lens: a lamp, or a panel."""
         if self.design.lens.kind == "panel":
             from ..panel.kind import Panel
 
             return Panel()
-        from .kind import Lamp
-
         return Lamp()
 
     @property
