@@ -11,6 +11,7 @@ space  := $(subst ,, )
 NAME    ?= $(if $(TEXT),text,$(basename $(notdir $(subst $(space),_,$(or $(PANORAMA),$(TARGET))))))
 PROFILE ?= default
 FAB     ?= sla_resin
+LED     ?= star3535
 ALLOW_FAIL ?=
 TARGET_FRONT ?=
 TARGET_LEFT  ?=
@@ -22,7 +23,7 @@ B      := $(BUILD)/$(NAME)
 VENV   := .venv
 PY     := $(VENV)/bin/python
 READY  := $(VENV)/.installed
-ARGS   = --out "$(B)" --profile "$(PROFILE)" --fab "$(FAB)"
+ARGS   = --out "$(B)" --profile "$(PROFILE)" --fab "$(FAB)" --led "$(LED)"
 RUN    = $(PY) stages/$(1).py $(ARGS)
 TARGETS = --target "$(TARGET)" --target-front "$(TARGET_FRONT)" --target-left "$(TARGET_LEFT)" \
           --target-right "$(TARGET_RIGHT)" --target-floor "$(TARGET_FLOOR)" \
@@ -35,7 +36,7 @@ lamp: $(B)/report.html
 	@$(PY) -m lampfab.cli summary $(ARGS)
 
 help:
-	@echo "make lamp TARGET=image.png [NAME=..] [PROFILE=draft|quick|default|fine|floor|panel] [FAB=sla_resin|acrylic_cnc4|...]"
+	@echo "make lamp TARGET=image.png [NAME=..] [PROFILE=draft|quick|default|...] [FAB=sla_resin|acrylic_cnc4|...] [LED=star3535|...]"
 	@echo "make lamp TEXT=\"Happy birthday\"      words instead of an image (build/text/)"
 	@echo "make lamp PANORAMA=examples/panorama.png   a 360° panorama wrapped around the room"
 	@echo "make <stage> TARGET=..   one stage and what it needs: prepare plan init optimize solid fabcheck export verify"
@@ -45,7 +46,7 @@ help:
 	@echo "make setup               the setup alone (system packages, .venv/, lampfab)"
 	@echo "without make: .venv/bin/lampfab --help, .venv/bin/lampfab <stage> --help"
 	@$(PY) -m lampfab.cli profiles 2>/dev/null \
-	  || echo "profiles: profiles/*.toml and profiles/fab/*.toml (listed here once the first make has installed lampfab)"
+	  || echo "profiles: profiles/*.toml, profiles/fab/*.toml and profiles/led/*.toml (listed here once the first make has installed lampfab)"
 
 # -- setup: system libraries, virtual environment, Python packages ----------------------
 setup: $(READY)
@@ -65,7 +66,8 @@ $(B)/settings.json: FORCE | $(READY)
 $(B)/prepare.json: $(B)/settings.json
 	$(call RUN,10_prepare) $(TARGETS)
 
-$(B)/plan.json: $(B)/settings.json
+# plan designs this image on a coarse grid to measure the LED's blur: it needs the targets.
+$(B)/plan.json: $(B)/prepare.json
 	$(call RUN,20_plan)
 
 # plan only reports, but a user should read its report before the long stages start.

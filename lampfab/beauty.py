@@ -1,11 +1,14 @@
-"""Two Mitsuba pictures for the report: the lamp as a glass object in its room (the
-source's "final rendered scene"), and the displaced lens on its own (the source's
-"bumpy lens").
+"""Pictures of the lamp for the report, rendered by Mitsuba: the lamp in its room as a
+person would see it, the lens close up as glass, and the lens as a matte object (the
+source's "bumpy lens").
 
-The room picture path-traces the exported lens as a dielectric.  The walls show the
-projections verify traced from the same STL, as glowing pictures: a path tracer alone
-would need hours to find the LED through the glass for every wall point, so the
-caustics come from verify's photon tracer and the glass from the path tracer.
+The room and the close view path-trace the exported lens as a dielectric.  The walls
+glow with the LED's light as lampfab's photon tracer traced it through the same STL
+onto the whole walls (``room_light``): a path tracer alone would need hours to find the
+small LED through the glass for every wall point, so the caustics come from the photon
+tracer and the glass, the room and its bounce light from the path tracer.  Both are
+rendered with a box filter (pixels with independent noise, as a denoiser expects) and
+cleaned by Intel Open Image Denoise, guided by the surfaces' albedo and normals.
 """
 
 from __future__ import annotations
@@ -17,10 +20,20 @@ import numpy as np
 
 from .room import Wall
 
-WALL_GLOW = 1.0          # radiance of the brightest part of a projection (display white)
-ROOM_GREY = 0.35         # albedo of walls, floor and table around the pictures
-AMBIENT = 0.04           # dim sky through the room's open back and ceiling: shows the room
-LED_RADIANCE = 50.0      # the LED bead: overexposed, as in a photo of a lamp
+WALL_GLOW = 0.85         # radiance of the brightest part of a projection: just under display white
+ROOM_GREY = 0.4          # albedo of walls, floor and table: a mid-grey matte paint
+AMBIENT = 0.03           # dim sky through the room's open back and ceiling: shows the room
+LED_RADIANCE = 50.0      # the LED: overexposed, as in a photo of a lamp
+# The walls' light is traced onto each wall this many times as wide and tall as its picture
+# (centred on it): the light that misses the pictures lands there too.
+ROOM_WALL_SCALE = 3
+# Where the person stands: this far behind the lamp, eyes this high above the floor.
+EYE_BEHIND_MM = 2300.0
+EYE_HEIGHT_MM = 1500.0
+LOOK_AHEAD_MM = 400.0    # the person looks at a point this far beyond the lamp, at its height
+ROOM_FOV_DEG = 84.0      # horizontal: the front wall and both side walls' pictures
+ROOM_ASPECT = 9 / 16
+TABLE_RADIUS_MM = 300.0  # the side table the lamp stands on
 
 
 def _rect(mi, origin: np.ndarray, right: np.ndarray, down: np.ndarray):
@@ -43,68 +56,104 @@ def _ply(vertices: np.ndarray, faces: np.ndarray, folder: Path) -> str:
     return str(path)
 
 
-def _camera(mi, eye, target, width: int, height: int, fov_deg: float, spp: int, seed: int) -> dict:
+def _camera(mi, eye, target, width: int, height: int, fov_deg: float, spp: int, seed: int,
+            rfilter: str = "gaussian") -> dict:
     return {"type": "perspective", "fov": fov_deg, "fov_axis": "x",
             "to_world": mi.ScalarTransform4f().look_at(list(eye), list(target), [0, 0, 1]),
             "film": {"type": "hdrfilm", "width": width, "height": height, "pixel_format": "luminance",
-                     "rfilter": {"type": "gaussian"}},
+                     "rfilter": {"type": rfilter}},
             "sampler": {"type": "independent", "sample_count": spp, "seed": seed}}
 
 
-def room_scene(vertices: np.ndarray, faces: np.ndarray, ior: float, light_mm: np.ndarray, led_radius_mm: float,
-               walls: list[Wall], pictures: list[np.ndarray], width_px: int, spp: int, seed: int = 0) -> np.ndarray:
-    """The glass lamp in its room, seen from behind and above the viewer's shoulder.
+def room_walls(walls: list[Wall]) -> list[Wall]:
+    """The whole walls around the pictures whose light ``room_light`` traces: each
+    ``ROOM_WALL_SCALE`` times as wide and tall as its picture, centred on it."""
+    grow = (ROOM_WALL_SCALE - 1) / 2
+    return [Wall(w.name, w.origin - grow * (w.right + w.down), ROOM_WALL_SCALE * w.right, ROOM_WALL_SCALE * w.down)
+            for w in walls]
 
-    vertices (n, 3) float64 mm, faces (m, 3): the lens solid in the STL frame;
-    ``pictures``: per wall (rows, cols) float64 flux, as verify rendered them.
-    Returns (rows, cols) float64 linear radiance, about 1 for a projection's white.
+
+def _scene(mi, folder: Path, vertices: np.ndarray, faces: np.ndarray, ior: float, led: dict,
+           walls: list[Wall], light: list[np.ndarray], floor_z: float) -> dict:
+    """The room: the lens as glass, the glowing LED, each wall lit by its traced ``light``
+    (per wall of ``room_walls``: (rows, cols) flux), the floor and the lamp's table."""
+    from .mitsuba_reference import light as led_emitter
+
+    top = max(float(np.percentile(img[img > 0], 99.5)) if (img > 0).any() else 0.0 for img in light) or 1.0
+    reach = max(float(np.abs(w.centre[:2]).max()) for w in walls) * 3.0
+    grey = {"type": "diffuse", "reflectance": ROOM_GREY}
+    scene = {"type": "scene",
+             "sky": {"type": "constant", "radiance": {"type": "spectrum", "value": AMBIENT}},
+             "led": led_emitter(np.asarray(led["position"], float), max(float(led["radius"]), 0.5),
+                                float(led.get("length", 0.0)), LED_RADIANCE),
+             "lens": {"type": "ply", "filename": _ply(vertices, faces, folder), "face_normals": True,
+                      "bsdf": {"type": "dielectric", "int_ior": float(ior), "ext_ior": 1.0}},
+             "floor": {"type": "rectangle", "bsdf": grey,
+                       "to_world": _rect(mi, np.array([-reach, reach, floor_z]), np.array([2 * reach, 0, 0]),
+                                         np.array([0, -2 * reach, 0]))}}
+    if floor_z < -1.0:  # the lamp stands on a round side table with one leg
+        top_z = -0.5
+        scene["table_top"] = {"type": "disk", "bsdf": grey,
+                              "to_world": mi.ScalarTransform4f().translate([0, 0, top_z]).scale(TABLE_RADIUS_MM)}
+        scene["table_edge"] = {"type": "cylinder", "radius": TABLE_RADIUS_MM, "p0": [0, 0, top_z - 25.0],
+                               "p1": [0, 0, top_z], "bsdf": grey}
+        scene["table_leg"] = {"type": "cylinder", "radius": 30.0, "p0": [0, 0, floor_z], "p1": [0, 0, top_z - 25.0],
+                              "bsdf": grey}
+    for k, (wall, img) in enumerate(zip(walls, light)):
+        glow = np.clip(img / top, 0.0, 1.0) * WALL_GLOW
+        bitmap = mi.Bitmap(np.ascontiguousarray(glow[::-1, :, None], dtype=np.float32))
+        # Diffuse and glowing at once: the wall shows the lamp's light and the room's.
+        scene[f"wall_{k}"] = {"type": "rectangle", "to_world": _rect(mi, wall.origin, wall.right, wall.down),
+                              "bsdf": grey, "emitter": {"type": "area", "radiance": {
+                                  "type": "bitmap", "bitmap": bitmap, "raw": True, "filter_type": "bilinear"}}}
+    return scene
+
+
+def _denoised(mi, scene: dict, camera: dict) -> np.ndarray:
+    """``scene`` seen by ``camera`` (box filter), path-traced with albedo and normal
+    guides and denoised by Intel Open Image Denoise: (rows, cols) float64 radiance."""
+    import pyoidn
+
+    scene = {**scene, "camera": camera,
+             "integrator": {"type": "aov", "aovs": "albedo:albedo,nn:sh_normal",
+                            "integrator": {"type": "path", "max_depth": 12}}}
+    out = np.asarray(mi.render(mi.load_dict(scene)), np.float32)  # Y, albedo RGB, normal XYZ
+    colour = np.ascontiguousarray(np.repeat(out[..., :1], 3, axis=2))
+    albedo = np.ascontiguousarray(np.clip(out[..., 1:4], 0.0, 1.0))
+    normal = np.ascontiguousarray(out[..., 4:7])
+    return np.asarray(pyoidn.denoise(colour, albedo, normal, hdr=True)[..., 0], np.float64)
+
+
+def room_pictures(vertices: np.ndarray, faces: np.ndarray, ior: float, led: dict, walls: list[Wall],
+                  light: list[np.ndarray], floor_z: float, width_px: int, spp: int,
+                  seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The lamp in its room at a person's eye height, and the lens close up as glass.
+
+    vertices (n, 3) float64 mm, faces (m, 3): the lens solid in the STL frame; ``led``:
+    design.json's light (position, radius, length); ``walls``: ``room_walls`` of the
+    design's walls, ``light`` their traced flux (rows, cols) each; ``floor_z`` mm.
+    Returns ((rows, width_px) room, a 4:3 close view 5/8 as wide), float64 linear
+    radiance, about 1 for a projection's white.
     """
     from .mi_env import mitsuba
 
     mi = mitsuba()
-    top = max(float(np.percentile(p, 99.5)) for p in pictures) or 1.0
-    low = min(float((w.origin + w.down)[2]) for w in walls)
-    floor_z = min(low, 0.0) - 1.0
-    reach = max(float(np.abs(w.centre[:2]).max()) for w in walls) * 1.3
-    scene = {"type": "scene",
-             "integrator": {"type": "path", "max_depth": 16},
-             "sky": {"type": "constant", "radiance": {"type": "spectrum", "value": AMBIENT}},
-             "led": {"type": "sphere", "center": light_mm.tolist(), "radius": float(led_radius_mm),
-                     "emitter": {"type": "area", "radiance": {"type": "spectrum", "value": LED_RADIANCE}}},
-             "floor": {"type": "rectangle", "bsdf": {"type": "diffuse", "reflectance": ROOM_GREY},
-                       "to_world": _rect(mi, np.array([-reach, reach, floor_z]), np.array([2 * reach, 0, 0]),
-                                         np.array([0, -2 * reach, 0]))}}
-    if floor_z < -1.0:  # the images reach below the lamp: it stands on a table
-        scene["table"] = {"type": "cylinder", "radius": 250.0, "p0": [0, 0, floor_z], "p1": [0, 0, -0.5],
-                          "bsdf": {"type": "diffuse", "reflectance": ROOM_GREY}}
-        scene["table_top"] = {"type": "disk", "bsdf": {"type": "diffuse", "reflectance": ROOM_GREY},
-                              "to_world": mi.ScalarTransform4f().translate([0, 0, -0.5]).scale(250.0)}
-    for k, (wall, picture) in enumerate(zip(walls, pictures)):
-        glow = np.clip(picture / top, 0.0, 1.0) * WALL_GLOW
-        bitmap = mi.Bitmap(np.ascontiguousarray(glow[::-1, :, None], dtype=np.float32))
-        scene[f"picture_{k}"] = {"type": "rectangle", "to_world": _rect(mi, wall.origin, wall.right, wall.down),
-                                 "bsdf": {"type": "diffuse", "reflectance": 0.0},
-                                 "emitter": {"type": "area", "radiance": {"type": "bitmap", "bitmap": bitmap,
-                                                                          "raw": True}}}
-        if wall.name != "floor":  # the wall itself, a little wider, just behind the picture
-            grow = 0.6
-            back = -wall.normal * 1.0
-            origin = wall.origin - grow * (wall.right + wall.down) + back
-            scene[f"wall_{k}"] = {"type": "rectangle", "bsdf": {"type": "diffuse", "reflectance": ROOM_GREY},
-                                  "to_world": _rect(mi, origin, (1 + 2 * grow) * wall.right,
-                                                    (1 + 2 * grow) * wall.down)}
-    # Close behind the lamp with a wide lens: the glass fills a sixth of the picture
-    # and all three walls are in view.
+    position = np.asarray(led["position"], float)
     height = float(vertices[:, 2].max())
-    eye = np.array([0.25 * height, -4.0 * height, 2.6 * height])
-    look = np.array([0.0, 0.8 * reach, -0.1 * reach])
-    rows = max(1, int(round(width_px * 0.625)))
+    rows = max(1, int(round(width_px * ROOM_ASPECT)))
     with tempfile.TemporaryDirectory() as tmp:
-        scene["lens"] = {"type": "ply", "filename": _ply(vertices, faces, Path(tmp)), "face_normals": True,
-                         "bsdf": {"type": "dielectric", "int_ior": float(ior), "ext_ior": 1.0}}
-        scene["camera"] = _camera(mi, eye, look, width_px, rows, 100.0, spp, seed)
-        loaded = mi.load_dict(scene)
-    return np.asarray(mi.render(loaded), np.float64)[..., 0]
+        scene = _scene(mi, Path(tmp), vertices, faces, ior, led, walls, light, floor_z)
+        eye = np.array([0.0, -EYE_BEHIND_MM, floor_z + EYE_HEIGHT_MM]) if floor_z < -1.0 else \
+            np.array([0.0, -EYE_BEHIND_MM, position[2] + EYE_HEIGHT_MM / 2])
+        look = [0.0, LOOK_AHEAD_MM, position[2] - 50.0]
+        room_view = _denoised(mi, scene, _camera(mi, eye, look, width_px, rows, ROOM_FOV_DEG, spp, seed, "box"))
+        # Close: a third of the way up, from the front-right, the lens filling most of the view.
+        close_eye = np.array([1.8 * height, -3.4 * height, 1.9 * height])
+        look = np.array([0.0, 0.0, 0.5 * height])
+        close_px = (5 * width_px) // 8
+        close = _denoised(mi, scene, _camera(mi, close_eye, look, close_px, (3 * close_px) // 4, 30.0, spp,
+                                             seed + 1, "box"))
+    return room_view, close
 
 
 def bumpy_lens(vertices: np.ndarray, faces: np.ndarray, width_px: int, spp: int, seed: int = 0) -> np.ndarray:

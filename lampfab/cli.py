@@ -35,6 +35,12 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="build folder, e.g. build/apple")
     p.add_argument("--profile", default="default", help="design profile name or .toml path (default: default)")
     p.add_argument("--fab", default="sla_resin", help="fabrication profile name or .toml path (default: sla_resin)")
+    _led(p)
+
+
+def _led(p: argparse.ArgumentParser) -> None:
+    # The literal, not profile.DEFAULT_LED: --help must not import the profiles' module.
+    p.add_argument("--led", default="star3535", help="LED profile name or .toml path (default: star3535)")
 
 
 def _targets(p: argparse.ArgumentParser, with_image: bool = True) -> None:
@@ -56,6 +62,7 @@ def parser() -> argparse.ArgumentParser:
                                                 "build/<panorama stem>)")
     lamp.add_argument("--profile", default="default")
     lamp.add_argument("--fab", default="sla_resin")
+    _led(lamp)
     lamp.add_argument("--allow-fail", action="store_true", help="go on after a failed fabrication check")
     _targets(lamp, with_image=False)
     for name, text in STAGE_HELP.items():
@@ -87,7 +94,7 @@ def _images(args: argparse.Namespace) -> dict[str, str]:
 def run_stage(name: str, args: argparse.Namespace) -> None:
     from . import pipeline
 
-    build = pipeline.Build.open(args.out, args.profile, args.fab)
+    build = pipeline.Build.open(args.out, args.profile, args.fab, args.led)
     if name == "settings":
         pipeline.snapshot(build, _images(args), args.text)
     elif name == "summary":
@@ -112,7 +119,7 @@ def _pipeline_stage(build, name: str, args: argparse.Namespace) -> None:
 def _profiles() -> None:
     from .profile import PROFILE_DIR
 
-    for folder, label in ((PROFILE_DIR, "design"), (PROFILE_DIR / "fab", "fabrication")):
+    for folder, label in ((PROFILE_DIR, "design"), (PROFILE_DIR / "fab", "fabrication"), (PROFILE_DIR / "led", "LED")):
         for p in sorted(folder.glob("*.toml")):
             first = next((ln.lstrip("# ").strip() for ln in p.read_text().splitlines() if ln.startswith("#")), "")
             print(f"{label:12s} {p.stem:14s} {first}")
@@ -127,7 +134,7 @@ def _lamp(args: argparse.Namespace) -> None:
                            "or --panorama pano.png")
     stem = "text" if args.text else Path(args.panorama or args.image).stem
     out = Path(args.out or Path("build") / stem)
-    build = pipeline.Build.open(out, args.profile, args.fab)
+    build = pipeline.Build.open(out, args.profile, args.fab, args.led)
     # Reads every input first: a bad one stops here, before any stage writes a file.
     pipeline.snapshot(build, _images(args), args.text)
     for name in pipeline.STAGES:

@@ -24,7 +24,7 @@ from . import lens, losses, scene, surface
 from .concavity import hollow_penalty
 from .errors import LampfabError
 from .limits import Limits
-from .profile import Optimize
+from .profile import Led, Optimize
 from .room import Wall
 
 # Losses above this multiple of the best loss so far (same view, same level) count as
@@ -149,7 +149,7 @@ class Optimizer:
 
     def __init__(self, cyl: surface.Cylinder, inner_vertices: np.ndarray, inner_faces: np.ndarray,
                  light_mm: np.ndarray, ior: float, walls: list[Wall], targets: list[np.ndarray],
-                 opt: Optimize, limits: Limits):
+                 opt: Optimize, limits: Limits, led: Led | None = None):
         if opt.backtrack and opt.schedule != "joint":
             # One view per step: consecutive losses are of different walls, and every
             # step would look like a rise (the profile loader refuses this too).
@@ -159,6 +159,9 @@ class Optimizer:
         self.targets = [np.asarray(t, np.float64) for t in targets]
         self.shapes = [t.shape for t in self.targets]
         self.limits = limits
+        # The light whose pictures the loss compares with the targets: the LED, or the
+        # ideal point (None).
+        self.led = led
         self._scene_grid = None
 
     def gradient(self, heights: np.ndarray, views: list[int], seed: int) -> tuple[float, np.ndarray]:

@@ -17,6 +17,7 @@ from typing import Any
 from .errors import LampfabError
 
 PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
+DEFAULT_LED = "star3535"
 WALL_NAMES = ("front", "left", "right", "floor")
 LENS_KINDS = ("cylinder", "panel")
 # Per-view losses (lampfab.losses computes them) and view schedules.  The numpy-only ones
@@ -86,6 +87,9 @@ class Optimize:
                                                 "towards zero: its last steps average the photon noise out")
     sensor_px: int = _spec(64, 8, 2048, doc="sensor width in pixels (height from the aspect)")
     spp: int = _spec(16, 1, 65536, doc="samples per pixel per step (ptracer)")
+    design_light: str = _spec("point", choices=("point", "led"),
+                              doc="the light the refinement designs for: the ideal point, or the LED profile's "
+                                  "emitter, whose blurred pictures the walls really get (splat only)")
     splat_photons: int = _spec(1_000_000, 1000, 100_000_000, doc="photons per step (splat), one per cell of an "
                                                                      "even grid of directions: rounded down to fill it")
     tessellation: int = _spec(4, 1, 16, doc="mesh vertices per heightmap cell edge (the STL uses the same)")
@@ -111,8 +115,11 @@ class Verify:
                                doc="photons per render of the tolerance study (eight or nine renders; the same photons "
                                    "in each, so their differences are not noise)")
     max_bounces: int = _spec(8, 2, 64, doc="interface crossings followed per photon")
-    scene_px: int = _spec(320, 16, 4096, doc="width of the report's picture of the glass lamp in its room")
-    scene_spp: int = _spec(32, 1, 65536, doc="path-traced samples per pixel of that picture")
+    mitsuba_photons: int = _spec(0, 0, 2_000_000_000, doc="light paths per wall and light of Mitsuba's own light "
+                                                          "tracer, the second opinion on verify's walls (0: none)")
+    scene_px: int = _spec(1280, 16, 4096, doc="width of the report's picture of the lamp in its room (16:9; the close view of "
+                                              "the lens is 5/8 as wide, 4:3)")
+    scene_spp: int = _spec(8, 1, 65536, doc="path-traced samples per pixel of those pictures (denoised)")
 
 
 @dataclass(frozen=True)
@@ -150,11 +157,29 @@ class Fabrication:
     build_x_mm: float = _spec(145.0, 1.0, 5000.0, doc="build volume x")
     build_y_mm: float = _spec(145.0, 1.0, 5000.0, doc="build volume y")
     build_z_mm: float = _spec(185.0, 1.0, 5000.0, doc="build volume z")
-    mount_radius_mm: float = _spec(6.0, 0.5, 100.0, doc="LED bore radius through the base")
+    mount_radius_mm: float = _spec(6.0, 0.5, 100.0, doc="the smallest bore through the base the process needs "
+                                                       "(the LED's board may need a wider one)")
     sector_creases: bool = _spec(False, doc="the outer surface may bend sharply where two walls' sectors meet "
                                            "(a printer makes such an edge, a ball-end tool cannot cut it)")
-    led_radius_mm: float = _spec(2.5, 0.0, 50.0, doc="emitting radius of the LED (blur in verify)")
     surface_error_mm: float = _spec(0.01, 0.0, 5.0, doc="surface error after finishing")
+    path: str = ""
+
+
+LED_SHAPES = ("sphere", "cylinder")
+
+
+@dataclass(frozen=True)
+class Led:
+    """An LED profile (``profiles/led/NAME.toml``): the part a maker buys, as the optics see
+    it.  Its emitting surface blurs every picture; its board must pass through the bore."""
+    name: str = _spec("", doc="profile name")
+    part: str = _spec("", doc="what to buy, in words")
+    shape: str = _spec("sphere", choices=LED_SHAPES,
+                       doc="sphere: a glowing ball; cylinder: a filament standing on the lamp axis")
+    radius_mm: float = _spec(1.5, 0.0, 20.0, doc="emitting radius (the ball's, or the filament's); 0: a point")
+    length_mm: float = _spec(0.0, 0.0, 100.0, doc="emitting length of a filament (cylinder only)")
+    board_diameter_mm: float = _spec(20.0, 1.0, 200.0, doc="the board or holder that must pass through the bore")
+    flux_lm: float = _spec(100.0, 0.1, 100_000.0, doc="typical luminous flux (lumen) at its usual current")
     path: str = ""
 
 
@@ -261,6 +286,21 @@ def load_fabrication(name_or_path: str) -> Fabrication:
     return dataclasses.replace(fab, path=str(path))
 
 
+def load_led(name_or_path: str) -> Led:
+    path = resolve(name_or_path, PROFILE_DIR / "led")
+    led = _build(Led, _read_toml(path), path, "")
+    if led.shape == "cylinder" and not led.length_mm > 0:
+        raise LampfabError(f"{path}: length_mm {led.length_mm}: a filament (shape cylinder) needs a length above 0")
+    if led.shape == "sphere" and led.length_mm:
+        raise LampfabError(f"{path}: length_mm applies only to shape = \"cylinder\" (a filament)")
+    return dataclasses.replace(led, name=led.name or path.stem, path=str(path))
+
+
+def with_bore_for(fab: Fabrication, led: Led) -> Fabrication:
+    """``fab`` with its bore widened, where needed, so that ``led``'s board passes through."""
+    return dataclasses.replace(fab, mount_radius_mm=max(fab.mount_radius_mm, led.board_diameter_mm / 2))
+
+
 def _check_design(d: Design, path: Path) -> None:
     """Relations between keys that single ranges cannot express."""
     lens, room, opt = d.lens, d.room, d.optimize
@@ -282,6 +322,9 @@ def _check_design(d: Design, path: Path) -> None:
                            f"method takes {', '.join(n for n in LOSSES if n not in NUMPY_ONLY_LOSSES)})")
     if opt.loss == "l1_weighted" and len(opt.loss_weights) != len(room.walls):
         raise LampfabError(f"{path}: [optimize] loss_weights needs one weight per wall ({len(room.walls)})")
+    if opt.design_light == "led" and opt.method != "splat":
+        raise LampfabError(f"{path}: [optimize] design_light \"led\" needs method \"splat\" (the {opt.method} "
+                           f"method designs for the point light)")
     if opt.backtrack and opt.schedule != "joint":
         raise LampfabError(f"{path}: [optimize] backtrack needs schedule \"joint\" (with one view per step, "
                            f"one step's loss does not compare with the next)")

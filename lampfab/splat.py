@@ -62,6 +62,11 @@ class SplatOptimizer(Optimizer):
         """Photons in the glass, after the inner layer, with their flux
         (``trace.into_glass``: refracted, and some reflected across the cavity).
 
+        They leave the ideal point, or with ``led`` the LED's emitting surface, so that
+        the loss sees the blurred pictures the walls will really get.  Designing for the
+        LED traded the point light's pictures for the LED's on every image measured
+        (bench/RESULTS.md, "Designing for the LED").
+
         One per cell of an equal-area grid of directions, jittered afresh each step: a
         fixed set would let fine levels fit its noise.  Stratified, a pixel's photon count
         varies only through the cells its border cuts, not with the square root of the
@@ -75,7 +80,8 @@ class SplatOptimizer(Optimizer):
         if seed == self._photon_seed:
             return
         mi = self.mi
-        o, d = emit(mi, self.light, 0.0, self.opt.splat_photons, seed)  # the ideal point light
+        radius, length = (self.led.radius_mm, self.led.length_mm) if self.led else (0.0, 0.0)
+        o, d = emit(mi, self.light, radius, self.opt.splat_photons, seed, length)
         self.n_photons = dr.width(d)
         self.o_glass, self.d_glass, self.w_glass = into_glass(mi, self.inner.scene, o, d, self.ior,
                                                               CAVITY_REFLECTIONS_EVERY)

@@ -38,6 +38,21 @@ def text_image(text: str, rows: int, cols: int) -> np.ndarray:
     """
     from PIL import Image, ImageDraw, ImageFont
 
+    em_px, layout = text_layout(text, rows, cols)
+    font = ImageFont.truetype(str(FONT), max(1, int(em_px * _SUPERSAMPLE)))
+    big = Image.new("L", (cols * _SUPERSAMPLE, rows * _SUPERSAMPLE), 0)
+    draw = ImageDraw.Draw(big)
+    centre = (big.width / 2, big.height / 2)
+    draw.multiline_text(centre, layout, fill=255, font=font, anchor="mm", align="center")
+    # Glyph coverage is the share of a pixel lit, so it is linear luminance as is.
+    return np.asarray(big.reduce(_SUPERSAMPLE), np.float64) / 255.0
+
+
+def text_layout(text: str, rows: int, cols: int) -> tuple[float, str]:
+    """How ``text_image`` sets ``text`` in (rows, cols): (the font's size, its em, in
+    pixels; the lines joined by newlines)."""
+    from PIL import Image, ImageDraw, ImageFont
+
     words_by_line = [ln.split() for ln in str(text).splitlines()]
     if not any(words_by_line):
         raise LampfabError("TEXT is empty: give the words to project, e.g. TEXT=\"Happy birthday\"")
@@ -54,15 +69,7 @@ def text_image(text: str, rows: int, cols: int) -> np.ndarray:
         scale = min(box_w / (right - left), box_h / (bottom - top))
         if best is None or scale > best[0]:
             best = (scale, layout)
-    scale, layout = best
-    size = max(1, int(probe * scale * _SUPERSAMPLE))
-    font = ImageFont.truetype(str(FONT), size)
-    big = Image.new("L", (cols * _SUPERSAMPLE, rows * _SUPERSAMPLE), 0)
-    draw = ImageDraw.Draw(big)
-    centre = (big.width / 2, big.height / 2)
-    draw.multiline_text(centre, layout, fill=255, font=font, anchor="mm", align="center")
-    # Glyph coverage is the share of a pixel lit, so it is linear luminance as is.
-    return np.asarray(big.reduce(_SUPERSAMPLE), np.float64) / 255.0
+    return probe * best[0], best[1]
 
 
 def _layouts(words_by_line: list[list[str]]):

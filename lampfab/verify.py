@@ -36,7 +36,9 @@ class Loaded:
     design: dict
     base: Path
     walls: list[room.Wall]
-    scene: object  # trace.MeshScene
+    vertices: np.ndarray  # (n, 3) float64 mm, the STL read back
+    faces: np.ndarray     # (m, 3) int
+    scene: object         # trace.MeshScene
 
 
 def load(design_path) -> Loaded:
@@ -47,24 +49,25 @@ def load(design_path) -> Loaded:
     design = read_design(design_path)
     vertices, faces = stl.read_stl(design_path.parent / design["lens"]["stl"])
     return Loaded(design, design_path.parent, [room.Wall.from_json(w) for w in design["walls"]],
-                  trace.MeshScene(vertices, faces))
+                  vertices, faces, trace.MeshScene(vertices, faces))
 
 
 def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bounces: int,
-                  light_radius_mm: float | None = None,
-                  reflection_place=None) -> tuple[list[np.ndarray], dict]:
+                  light_radius_mm: float | None = None, reflection_place=None,
+                  kernel_moments=None) -> tuple[list[np.ndarray], dict]:
     """Trace the design's STL onto its walls (``loaded.walls``).  Returns (per-wall flux
     images, ``room.image_shape(wall, image_px)`` float64, share of the emitted light per
     pixel; info as ``trace.render_walls``'s).
 
-    ``light_radius_mm`` None: the design's own light (an LED of its radius, a beam with
-    its spread); a number: an LED of that radius (a beam: parallel).
-    ``reflection_place``: see ``trace.render_walls``."""
+    ``light_radius_mm`` None: the design's own light (its LED, a beam with its spread); a
+    number: a ball of that radius (0: the point light; a beam: parallel).
+    ``reflection_place``, ``kernel_moments``: see ``trace.render_walls``."""
     from . import trace
 
     design, walls = loaded.design, loaded.walls
     shapes = [room.image_shape(w, image_px) for w in walls]
     radius = design["light"]["radius"] if light_radius_mm is None else light_radius_mm
+    length = design["light"].get("length", 0.0) if light_radius_mm is None else 0.0
     emitter = None
     if design["light"].get("type") == "collimated":
         from .panel.geometry import emitter_from_json
@@ -72,30 +75,48 @@ def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bo
         emitter = emitter_from_json(design["light"], divergence=light_radius_mm is None)
     images, info = trace.render_walls(loaded.scene, np.asarray(design["light"]["position"], float), radius,
                                       float(design["material"]["ior"]), walls, shapes, photons, seed,
-                                      max_bounces, emitter, reflection_place)
+                                      max_bounces, emitter, reflection_place, length, kernel_moments)
     return images, info
 
 
-def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bounces: int) -> dict:
+def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bounces: int,
+           mitsuba_photons: int = 0) -> dict:
     """Render point-light and LED-size images, compare with the targets, write images.
 
     Returns {"walls": {name: {pearson, ssim, share, ghost_share, direct_ssim, ssim_ceiling,
-    led_pearson, led_ssim, led_share}}, "lost_share", "trapped_share"}.
+    led_pearson, led_ssim, led_share, ...}}, "lost_share", "trapped_share", ...}.
 
     ``ghost_share`` is the part of the wall's light that was reflected inside the lens
     (Fresnel ghosts), ``direct_ssim`` the SSIM of the rest (the light the outer surface
     steers: the design's own contrast), and ``ssim_ceiling`` the SSIM of the target
     itself with these ghosts added: what an outer surface that put its light exactly on
     the target would score, unless it also changed the ghosts.
+
+    For an LED (not a panel's beam) each wall also gets the LED's blur measured on this
+    lens (``sharpness``): ``led_blur_mm`` (median diameters across and up, and their
+    10-90 % range), ``led_reference_pearson`` / ``led_reference_ssim`` (the target
+    blurred by these kernels: what a perfect point-light design would show with this
+    LED), ``led_ssim_ceiling`` (that, with the lens's own reflections of the LED's
+    light added, as ``ssim_ceiling``) and ``led_kernel_pearson`` (the point-light render
+    blurred by the kernels against the LED render: how well the kernels describe the
+    blur).  With ``mitsuba_photons`` Mitsuba's light tracer renders the lens too
+    (``mitsuba_reference``): ``mitsuba_pearson`` (LED) and ``mitsuba_point_pearson``.
     """
-    from . import image
+    from . import image, sharpness
 
     out_dir = Path(out_dir)
     loaded = load(design_path)
     design = loaded.design
     walls = loaded.walls
-    point, info = render_design(loaded, image_px, photons, seed, max_bounces, 0.0)
-    led, led_info = render_design(loaded, image_px, photons, seed + 1, max_bounces)
+    led_light = design["light"].get("type") != "collimated"
+    moments = [sharpness.Moments(sharpness.Cells.for_photons(*_height_range(loaded), photons), len(walls))
+               for _ in range(2)] \
+        if led_light else [None, None]
+    point, info = render_design(loaded, image_px, photons, seed, max_bounces, 0.0, kernel_moments=moments[0])
+    led, led_info = render_design(loaded, image_px, photons, seed + 1, max_bounces, kernel_moments=moments[1])
+    kernels = sharpness.Kernels.of(*moments) if led_light else None
+    mitsuba = _mitsuba(loaded, [p.shape for p in point], mitsuba_photons, seed + 2) \
+        if led_light and mitsuba_photons else None
     figures = {"walls": {}, "lost_share": info["lost"], "trapped_share": info["trapped"],
                "led_radius_mm": design["light"]["radius"], "photons": photons,
                "real_light": _real_light(design["light"])}
@@ -107,16 +128,85 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
         ghosts = info["ghosts"][k]
         direct = point[k] - ghosts
         exact = target / max(float(target.sum()), 1e-300) * float(direct.sum())
-        figures["walls"][wall.name] = {
+        f = figures["walls"][wall.name] = {
             "pearson": sharp["pearson"], "ssim": sharp["ssim"], "share": info["shares"][k],
             "ghost_share": float(ghosts.sum() / max(point[k].sum(), 1e-300)),
             "direct_ssim": metrics.ssim(direct, target), "ssim_ceiling": metrics.ssim(exact + ghosts, target),
             "led_pearson": blur["pearson"], "led_ssim": blur["ssim"], "led_share": led_info["shares"][k]}
-        point_png, led_png, arrays = wall_files(out_dir, wall.name)
+        arrays = {"point": point[k], "led": led[k], "ghosts": ghosts}
+        if kernels is not None and len(kernels.on(k, wall)):
+            f.update(_led_reference(kernels, k, wall, target, point[k], led[k], led_info["ghosts"][k], arrays))
+        point_png, led_png, npz = wall_files(out_dir, wall.name)
+        if mitsuba is not None:
+            f["mitsuba_pearson"] = metrics.pearson(mitsuba["led"][k], led[k])
+            f["mitsuba_point_pearson"] = metrics.pearson(mitsuba["point"][k], point[k])
+            arrays.update(mitsuba=mitsuba["led"][k], mitsuba_point=mitsuba["point"][k])
+            artifacts.write_png(mitsuba_file(out_dir, wall.name), mitsuba["led"][k])
         artifacts.write_png(point_png, point[k])
         artifacts.write_png(led_png, led[k])
-        artifacts.write_npz(arrays, point=point[k], led=led[k], ghosts=ghosts)
+        artifacts.write_npz(npz, **arrays)
+    if mitsuba is not None:
+        figures["mitsuba"] = {"photons_per_wall": mitsuba["photons"], "seconds": mitsuba["seconds"]}
     return figures
+
+
+def _led_reference(kernels, k: int, wall: room.Wall, target: np.ndarray, point: np.ndarray, led: np.ndarray,
+                   led_ghosts: np.ndarray, arrays: dict) -> dict:
+    """verify.json's LED blur figures of wall ``k`` (see ``verify``); adds the reference
+    image to ``arrays``."""
+    from . import sharpness
+
+    field = kernels.field(k, wall, target.shape)
+    reference = sharpness.blur(target, field, wall)
+    exact = reference / max(float(reference.sum()), 1e-300) * float((led - led_ghosts).sum())
+    d = kernels.diameters_mm(k, wall)
+    arrays["led_reference"] = reference
+    return {"led_blur_mm": {"horizontal": d["horizontal"][1], "vertical": d["vertical"][1]},
+            "led_blur_range_mm": {"horizontal": [d["horizontal"][0], d["horizontal"][2]],
+                                  "vertical": [d["vertical"][0], d["vertical"][2]]},
+            "led_reference_pearson": metrics.pearson(reference, target),
+            "led_reference_ssim": metrics.ssim(reference, target),
+            "led_ssim_ceiling": metrics.ssim(exact + led_ghosts, target),
+            "led_kernel_pearson": metrics.pearson(sharpness.blur(point, field, wall), led)}
+
+
+def _height_range(loaded: Loaded) -> tuple[float, float]:
+    """(lowest, highest) z of the lens, mm: the span of ``sharpness.Cells``."""
+    z = loaded.vertices[:, 2]
+    return float(z.min()), float(z.max())
+
+
+def _mitsuba(loaded: Loaded, shapes: list, photons: int, seed: int) -> dict:
+    """Mitsuba's pictures of every wall for the LED and the point light."""
+    import time
+
+    from . import mitsuba_reference
+
+    design = loaded.design
+    light, ior = np.asarray(design["light"]["position"], float), float(design["material"]["ior"])
+    t0 = time.time()
+    out = {"photons": photons}
+    for name, radius, length in (("point", 0.0, 0.0),
+                                 ("led", design["light"]["radius"], design["light"].get("length", 0.0))):
+        out[name] = mitsuba_reference.render(loaded.vertices, loaded.faces, ior, light, radius, length,
+                                             loaded.walls, shapes, photons, seed)
+    out["seconds"] = time.time() - t0
+    return out
+
+
+def room_light(design_path, walls: list[room.Wall], width_px: int, photons: int, seed: int) -> list[np.ndarray]:
+    """The design's own light (its LED, a panel's beam with its spread) traced through its
+    STL onto ``walls``: per wall (rows, cols) flux, ``width_px`` wide (the room picture's
+    walls)."""
+    loaded = load(design_path)
+    loaded = Loaded(loaded.design, loaded.base, walls, loaded.vertices, loaded.faces, loaded.scene)
+    images, _ = render_design(loaded, width_px, photons, seed, 8)
+    return images
+
+
+def mitsuba_file(out_dir, name: str) -> Path:
+    """Where ``verify`` puts Mitsuba's LED picture of a wall."""
+    return Path(out_dir) / f"{name}_mitsuba.png"
 
 
 def wall_files(out_dir, name: str) -> tuple[Path, Path, Path]:
@@ -127,9 +217,10 @@ def wall_files(out_dir, name: str) -> tuple[Path, Path, Path]:
 
 
 def optimizer_agreement(out_dir, reference_npz, names: list[str]) -> dict[str, float]:
-    """Pearson r between verify's point-light render of each wall (``wall_files``)
-    and the optimizer's own final render of it (``reference_npz``, one array per wall,
-    written by the optimize stage), the verify render resampled to the optimizer's shape.
+    """Pearson r between verify's render of each wall (``wall_files``) and the
+    optimizer's own final render of it (``reference_npz``, one array per wall, written by
+    the optimize stage, and ``light``: "point" or "led", the light it designed for, which
+    picks verify's render), the verify render resampled to the optimizer's shape.
 
     The two trace the same lens with different tracers (the exported STL with Fresnel
     and every bounce vs the optimizer's splatting), so r near 1 says the exported file
@@ -138,9 +229,10 @@ def optimizer_agreement(out_dir, reference_npz, names: list[str]) -> dict[str, f
     from . import image
 
     reference = artifacts.read_npz(reference_npz)
+    light = str(reference.get("light", "point"))
     out = {}
     for name in names:
-        mine = artifacts.read_npz(wall_files(out_dir, name)[2])["point"]
+        mine = artifacts.read_npz(wall_files(out_dir, name)[2])[light]
         theirs = np.asarray(reference[name], np.float64)
         out[name] = metrics.pearson(image.letterbox(mine, *theirs.shape), theirs)
     return out

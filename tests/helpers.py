@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parent.parent
 # The Makefile reads these with ?=: a developer's exported TEXT or ALLOW_FAIL would change
 # every build the tests make.
 _MAKE_VARIABLES = ("TARGET", "TEXT", "PANORAMA", "NAME", "PROFILE", "FAB", "ALLOW_FAIL", "BUILD",
-                   "TARGET_FRONT", "TARGET_LEFT", "TARGET_RIGHT", "TARGET_FLOOR")
+                   "TARGET_FRONT", "TARGET_LEFT", "TARGET_RIGHT", "TARGET_FLOOR", "LED")
 
 
 def make(*args) -> subprocess.CompletedProcess:

@@ -4,7 +4,7 @@ from lampfab import profile
 from lampfab.errors import LampfabError
 
 
-@pytest.mark.parametrize("name", ["draft", "quick", "default", "fine", "floor"])
+@pytest.mark.parametrize("name", ["draft", "quick", "default", "fine", "floor", "hires"])
 def test_bundled_design_profiles_load(name):
     d = profile.load_design(name)
     assert d.name == name and d.room.walls
@@ -38,3 +38,47 @@ def test_bad_profiles_name_file_key_and_range(tmp_path, text, words):
 def test_unknown_profile_name_lists_the_available_ones():
     with pytest.raises(LampfabError, match="available: .*default"):
         profile.load_design("no_such_profile")
+
+
+@pytest.mark.parametrize("name", ["star3535", "mini1616", "die1mm", "filament26"])
+def test_bundled_led_profiles_load_with_a_part_and_a_board(name):
+    led = profile.load_led(name)
+    assert led.name == name and led.part and led.board_diameter_mm > 0 and led.flux_lm > 0
+    assert (led.length_mm > 0) == (led.shape == "cylinder")
+
+
+def test_the_default_led_is_the_one_lampfab_always_had():
+    led = profile.load_led(profile.DEFAULT_LED)
+    assert (led.shape, led.radius_mm, led.board_diameter_mm) == ("sphere", 1.5, 20.0)
+
+
+@pytest.mark.parametrize("text, words", [
+    ("shape = 'cube'\n", ["shape", "'cube'", "sphere"]),
+    ("shape = 'cylinder'\n", ["length_mm", "filament"]),
+    ("length_mm = 5.0\n", ["length_mm", "cylinder"]),
+    ("radius_mm = 30.0\n", ["radius_mm", "out of range", "0.0 to 20.0"]),
+    ("colour = 'warm'\n", ["colour", "unknown key"]),
+])
+def test_bad_led_profiles_name_file_key_and_range(tmp_path, text, words):
+    p = tmp_path / "my led.toml"
+    p.write_text(text)
+    with pytest.raises(LampfabError) as err:
+        profile.load_led(str(p))
+    assert str(p) in str(err.value)
+    for w in words:
+        assert w in str(err.value)
+
+
+def test_the_leds_board_widens_the_bore_never_narrows_it():
+    sla, cnc = profile.load_fabrication("sla_resin"), profile.load_fabrication("acrylic_cnc4")
+    star, mini = profile.load_led("star3535"), profile.load_led("mini1616")
+    assert profile.with_bore_for(sla, star).mount_radius_mm == 10.0   # the 20 mm star board
+    assert profile.with_bore_for(sla, mini).mount_radius_mm == 5.0
+    assert profile.with_bore_for(cnc, mini).mount_radius_mm == 12.5   # the mill's counterbore stays
+
+
+def test_designing_for_the_led_needs_the_splat_refinement(tmp_path):
+    p = tmp_path / "p.toml"
+    p.write_text("[optimize]\nmethod = 'ptracer'\nloss = 'si_mse'\ndesign_light = 'led'\n")
+    with pytest.raises(LampfabError, match="design_light.*splat"):
+        profile.load_design(str(p))

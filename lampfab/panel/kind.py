@@ -40,6 +40,10 @@ class Panel(LensKind):
         verts, faces = panel.closed_mesh(shape(build), np.zeros(_grid(build)), build.design.optimize.tessellation)
         return trace.MeshScene(verts, faces), panel.collimated_emitter(shape(build))
 
+    def sharpness_budget(self, build) -> None:
+        """A collimated beam's spread has no LED picture to measure: verify renders it."""
+        return None
+
     def first_design(self, build) -> tuple[np.ndarray, dict]:
         """The relief by collimated transport (``transport``)."""
         from . import transport
@@ -83,23 +87,26 @@ class Panel(LensKind):
         """The lamp's tolerance study and finishing advice are not made for a panel."""
         return {}
 
-    def report_light(self, build, design: dict) -> tuple[np.ndarray, float]:
-        """The collimated lamp stands for the beam: a bright disk behind the panel."""
+    def report_light(self, build, design: dict) -> dict:
+        """The collimated lamp stands for the beam: a bright ball behind the panel."""
         s = shape(build)
-        return np.array([0.0, -3 * s.thickness_mm - s.width_mm, s.height_mm / 2]), s.width_mm / 4
+        return {"position": [0.0, -3 * s.thickness_mm - s.width_mm, s.height_mm / 2], "radius": s.width_mm / 4}
 
     def heightmap_picture(self, build, wall_names: list[str], path) -> None:
         """The relief as a colour map."""
         relief_map(shape(build), build.heights(), path)
 
-    def lens_sections(self, build, pictures: dict, fig) -> tuple[list, list]:
-        first = [("Your panel", '<div class="row">' + fig(
-            "The panel in its room", pictures["room"], "the exported panel path-traced as glass, a bright disk behind "
-            "it standing for the collimated lamp; the wall shows the projection verify traced from the same file "
-            "(the beam's real spread)") + fig(
-            "The panel", pictures["lens"], "lens.stl as a matte object: the relief makes the picture") + "</div>")]
-        return first, [("The relief", fig("Offset from the middle plane", pictures["heightmap"],
-                                          "seen from the beam's side, x across and z up"))]
+    def report_pictures(self, build, pictures: dict) -> tuple:
+        from ..report import Picture
+
+        room = Picture("The panel in its room", pictures["room"], note=(
+            "The exported panel path-traced as glass, a bright ball behind it standing for the collimated lamp; "
+            "the wall lit by the beam (its real spread) traced through the same file."))
+        return room, [
+            Picture("The panel, close up", pictures["closeup"], note="lens.stl as glass"),
+            Picture("Its shape", pictures["lens"], note="lens.stl as a matte object: the relief makes the picture"),
+            Picture("The relief", pictures["heightmap"], note="offset from the middle plane, seen from the beam's "
+                                                              "side, x across and z up")]
 
     def next_steps(self, build) -> str:
         p, fab = build.design.panel, build.fab

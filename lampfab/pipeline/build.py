@@ -47,14 +47,18 @@ def _artifact(*parts: str) -> property:
 
 @dataclass(frozen=True)
 class Build:
-    """The build folder ``out`` of one design and the profiles it uses."""
+    """The build folder ``out`` of one design and the profiles it uses: ``fab``'s bore
+    is already widened for ``led``'s board (``profile.with_bore_for``)."""
     out: Path
     design: profile.Design
     fab: profile.Fabrication
+    led: profile.Led
 
     @staticmethod
-    def open(out, design_name: str, fab_name: str) -> "Build":
-        return Build(Path(out), profile.load_design(design_name), profile.load_fabrication(fab_name))
+    def open(out, design_name: str, fab_name: str, led_name: str = profile.DEFAULT_LED) -> "Build":
+        led = profile.load_led(led_name)
+        return Build(Path(out), profile.load_design(design_name),
+                     profile.with_bore_for(profile.load_fabrication(fab_name), led), led)
 
     # -- the lens and its room, as the stages use them ------------------------------------
     @functools.cached_property
@@ -87,7 +91,8 @@ class Build:
         return room.walls(self.design)
 
     def settings(self) -> dict:
-        return {"design": profile.as_dict(self.design), "fabrication": profile.as_dict(self.fab)}
+        return {"design": profile.as_dict(self.design), "fabrication": profile.as_dict(self.fab),
+                "led": profile.as_dict(self.led)}
 
     def begin(self, stage: str, inputs: dict) -> artifacts.StageReport:
         """Start a stage: refuse it with a message if it needs more memory than is
@@ -98,7 +103,7 @@ class Build:
 
         resources.check_memory(stage, self.design)
         files = {"design_profile": self.design.path, "fabrication_profile": self.fab.path,
-                 "inner_layer": self.design.lens.inner_mesh or DEFAULT_INNER}
+                 "led_profile": self.led.path, "inner_layer": self.design.lens.inner_mesh or DEFAULT_INNER}
         return artifacts.StageReport(stage, {**inputs, **files}, self.settings(), seed=self.design.optimize.seed)
 
     def inner(self) -> tuple[np.ndarray, np.ndarray]:
@@ -124,7 +129,8 @@ class Build:
         from ..splat import SplatOptimizer
 
         method = {"ptracer": optimize.PtracerOptimizer, "splat": SplatOptimizer}[opt.method]
-        return method(self.cylinder, *inner, self.light, self.fab.ior, self.walls, targets, opt, self.limits)
+        return method(self.cylinder, *inner, self.light, self.fab.ior, self.walls, targets, opt, self.limits,
+                      self.led if opt.design_light == "led" else None)
 
     # -- where each artifact lives ----------------------------------------------------------
     def report_file(self, stage: str) -> Path:

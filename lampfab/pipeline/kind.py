@@ -33,6 +33,11 @@ class LensKind(ABC):
         the LED), for the plan."""
 
     @abstractmethod
+    def sharpness_budget(self, build) -> dict | None:
+        """plan's figures on how much the LED will blur each wall (``budget.measure``), or
+        None where the light has no emitter to blur with."""
+
+    @abstractmethod
     def first_design(self, build) -> tuple[np.ndarray, dict]:
         """init: ((nu, nv) mm heights, figures for init.json, "method" first)."""
 
@@ -60,17 +65,18 @@ class LensKind(ABC):
         """verify.json's tolerance study and finishing advice ({} where there are none)."""
 
     @abstractmethod
-    def report_light(self, build, design: dict) -> tuple[np.ndarray, float]:
-        """The light of report.html's room picture: ((3,) mm position, radius mm)."""
+    def report_light(self, build, design: dict) -> dict:
+        """The glowing body of report.html's room pictures, as design.json's light:
+        position (mm), radius (mm), and a filament's length."""
 
     @abstractmethod
     def heightmap_picture(self, build, wall_names: list[str], path) -> None:
         """The outer surface's relief as a colour map, written to ``path``."""
 
     @abstractmethod
-    def lens_sections(self, build, pictures: dict, fig) -> tuple[list, list]:
-        """report.html's first section and the relief's section, as (title, HTML) lists;
-        ``fig`` is ``report.figure_html``."""
+    def report_pictures(self, build, pictures: dict) -> tuple:
+        """report.html's room picture and its lens section: (a ``report.Picture``, a list
+        of them), from ``report_page.pictures``'s paths."""
 
     @abstractmethod
     def next_steps(self, build) -> str:
@@ -105,6 +111,11 @@ class Lamp(LensKind):
         grid = (build.design.optimize.grid_u, build.design.optimize.grid_v)
         plain = self.solid_maker(build)(np.zeros(grid))
         return trace.MeshScene(plain.vertices, plain.faces), None
+
+    def sharpness_budget(self, build) -> dict:
+        from . import budget
+
+        return budget.measure(build)
 
     def first_design(self, build) -> tuple[np.ndarray, dict]:
         """The transport design (default), or the source's plain cylinder."""
@@ -150,8 +161,10 @@ class Lamp(LensKind):
                                     expected_volume_mm3=stl_volume_mm3)
 
     def light_json(self, build) -> dict:
-        """The LED's centre and radius."""
-        return {"position": build.light.tolist(), "radius": build.fab.led_radius_mm}
+        """The LED: its centre, its emitting shape and size, the part."""
+        led = build.led
+        return {"position": build.light.tolist(), "shape": led.shape, "radius": led.radius_mm,
+                "length": led.length_mm, "part": led.part, "flux_lm": led.flux_lm}
 
     def finishing(self, build) -> dict:
         """The tolerance study and the post-processing guidance (``guidance``)."""
@@ -173,8 +186,8 @@ class Lamp(LensKind):
         return {"tolerance": study,
                 "guidance": guidance.advice(fab, [w.name for w in build.walls], build.light, study)}
 
-    def report_light(self, build, design: dict) -> tuple[np.ndarray, float]:
-        return np.asarray(design["light"]["position"], float), build.fab.led_radius_mm
+    def report_light(self, build, design: dict) -> dict:
+        return design["light"]
 
     def heightmap_picture(self, build, wall_names: list[str], path) -> None:
         """The unrolled heightmap, each sector labelled with its wall."""
@@ -182,15 +195,18 @@ class Lamp(LensKind):
 
         pictures.heightmap_map(build.cylinder, build.heights(), wall_names, path)
 
-    def lens_sections(self, build, pictures: dict, fig) -> tuple[list, list]:
-        first = [("Your lamp", '<div class="row">' + fig(
-            "The lamp in its room", pictures["room"], "the exported lens path-traced as glass; the walls show the "
-            "projections verify traced from the same file (LED size)") + fig(
-            "The lens", pictures["lens"], "lens.stl as a matte object: the bumps are the outer layer that makes "
-            "the picture") + "</div>")]
-        return first, [("The outer layer, unrolled", fig(
-            "Radial offset from the plain cylinder", pictures["heightmap"], "each 90° sector lights the wall named "
-            "above it; orange bulges out, blue goes in"))]
+    def report_pictures(self, build, pictures: dict) -> tuple:
+        from ..report import Picture
+
+        room = Picture("The lamp in its room", pictures["room"], note=(
+            "What a person standing behind the lamp sees in a dark room: lens.stl path-traced as glass, the walls "
+            "lit by the LED's light traced through the same file, bounce light and a little ambient light."))
+        return room, [
+            Picture("The lens, close up", pictures["closeup"], note="lens.stl as glass, its LED lit"),
+            Picture("Its shape", pictures["lens"], note="lens.stl as a matte object: the bumps of the outer layer "
+                                                        "make the pictures"),
+            Picture("The outer layer, unrolled", pictures["heightmap"], note="radial offset from the plain cylinder; "
+                    "each 90° sector lights the wall named above it; orange bulges out, blue goes in")]
 
     def next_steps(self, build) -> str:
         return (f"<p>Send <code>lens.stl</code> to the printer's slicer (binary STL, millimetres, Z up, standing on "

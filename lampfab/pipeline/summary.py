@@ -24,7 +24,15 @@ def _key_figure(stage: str, figs: dict) -> str:
         return "; ".join(f"{v} on {', '.join(w for w in sources if sources[w] == v)}"
                          for v in dict.fromkeys(sources.values()))
     if stage == "plan":
-        return f"{1 - figs['lost_share']:.0%} of the light on the wall planes"
+        line = f"{1 - figs['lost_share']:.0%} of the light on the wall planes"
+        sharp = figs.get("sharpness")
+        if sharp and sharp["walls"]:
+            h = max(w["led_blur_mm"]["horizontal"] for w in sharp["walls"].values())
+            v = max(w["led_blur_mm"]["vertical"] for w in sharp["walls"].values())
+            line += f"; LED blur up to {h:.0f} x {v:.0f} mm, finest detail {sharp['finest_detail_mm']:.0f} mm"
+            if sharp["warnings"]:
+                line += f" ({len(sharp['warnings'])} warning{'s' * (len(sharp['warnings']) > 1)}: see plan.json)"
+        return line
     if stage == "init":
         tilt = figs.get("max_tilt_deg")
         return figs["method"] + (f", max tilt {tilt:.1f}°" if tilt is not None else "")
@@ -41,5 +49,5 @@ def _key_figure(stage: str, figs: dict) -> str:
     if stage == "export":
         return (f"lens.stl {figs['stl_bytes'] / 1e6:.1f} MB, lens.step {figs['step_bytes'] / 1e6:.1f} MB, "
                 f"B-spline within {figs['bspline_deviation_mm'] * 1000:.2g} µm")
-    return ", ".join(f"{n} r {f['pearson']:.2f} SSIM {f['ssim']:.2f} (LED r {f['led_pearson']:.2f})"
-                     for n, f in figs["walls"].items())
+    return ", ".join(f"{n} r {f['led_pearson']:.2f} SSIM {f['led_ssim']:.2f}" for n, f in figs["walls"].items()) \
+        + f" with the {figs['real_light']}"

@@ -93,8 +93,36 @@ def test_verify_reports_figures_and_report_embeds_images(lamp):
         images = np.load(out / "verify" / f"{name}.npz")
         assert np.all(images["ghosts"] <= images["point"])
         assert wall["ssim"] < wall["ssim_ceiling"] <= 1 and wall["direct_ssim"] > 0.5
+        # The LED's blur measured on the made lens: the kernels reproduce the LED render
+        # from the point light's, and Mitsuba's light tracer sees the same walls.
+        blur = wall["led_blur_mm"]
+        assert 20 < blur["horizontal"] < 200 and 20 < blur["vertical"] < 200
+        assert wall["led_kernel_pearson"] > 0.9 and 0 < wall["led_ssim_ceiling"] < wall["led_reference_ssim"] <= 1
+        assert wall["mitsuba_pearson"] > 0.9 and wall["mitsuba_point_pearson"] > 0.9
+        assert (out / "verify" / f"{name}_mitsuba.png").is_file() and "led_reference" in images
     html = (out / "report.html").read_text()
-    assert len(re.findall(r'<img[^>]+src="data:image/png;base64,', html)) >= 9
+    assert len(re.findall(r'<img[^>]+src="data:image/png;base64,', html)) >= 16
+    assert "Projects your picture" in html and "checks for sla_resin" in html
+
+
+@pytest.mark.slow
+@pytest.mark.e2e
+def test_plan_measures_the_leds_blur_before_the_long_stages(lamp, tmp_path, tiny_profile):
+    out, _, _, _ = lamp
+    plan = json.loads((out / "plan.json").read_text())["figures"]
+    sharp = plan["sharpness"]
+    assert sharp["led"]["name"] == "star3535" and plan["finest_detail_mm"] > 20
+    for name, wall in plan["walls"].items():
+        assert wall["led_blur_mm"] == sharp["walls"][name]["led_blur_mm"]
+        assert 0 < wall["led_blur_mm"]["horizontal"] < wall["led_blur_mm"]["vertical"] < 300
+    assert "To halve it" in sharp["halve"]
+    # A smaller LED: the blur shrinks with it, and its smaller board gets a smaller bore.
+    run = make("plan", f"BUILD={tmp_path}", "NAME=apple", f"PROFILE={tiny_profile}", "LED=mini1616")
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    small = json.loads((tmp_path / "apple" / "plan.json").read_text())["figures"]
+    assert small["finest_detail_mm"] / plan["finest_detail_mm"] == pytest.approx(0.8 / 1.5, rel=0.2)
+    settings = json.loads((tmp_path / "apple" / "settings.json").read_text())
+    assert settings["led"]["name"] == "mini1616" and settings["fabrication"]["mount_radius_mm"] == 5.0
 
 
 @pytest.mark.slow

@@ -129,11 +129,16 @@ def _chromium():
 
 
 _PROBE = """<script>
+const errors = [];
+window.addEventListener("error", e => errors.push(String(e.message || (e.target && e.target.alt) || e)), true);
+const logged = console.error;
+console.error = (...args) => { errors.push(args.join(" ")); logged(...args); };
 window.addEventListener("load", () => {
   const imgs = Array.from(document.images);
   const out = document.createElement("pre");
   out.id = "probe";
-  out.textContent = JSON.stringify(imgs.map(i => [i.alt, i.complete, i.naturalWidth, i.naturalHeight]));
+  out.textContent = JSON.stringify({errors: errors,
+    images: imgs.map(i => [i.alt, i.complete, i.naturalWidth, i.naturalHeight])});
   document.body.appendChild(out);
 });
 </script>"""
@@ -143,26 +148,30 @@ window.addEventListener("load", () => {
 @pytest.mark.e2e
 @pytest.mark.browser
 def test_report_loads_every_image_in_a_real_browser(text_lamp, tmp_path):
-    """Chromium opens report.html offline; every <img> decodes to its real size."""
+    """Chromium opens report.html offline; every <img> decodes to its real size and
+    nothing reports an error."""
     out, _ = text_lamp
     html = (out / "report.html").read_text(encoding="utf-8")
     assert "<script" not in html  # the report itself runs nothing; the probe is added to a copy
     page = tmp_path / "probe.html"
-    page.write_text(html.replace("</body>", _PROBE + "</body>"), encoding="utf-8")
+    page.write_text(html.replace("<head>", "<head>" + _PROBE), encoding="utf-8")
     run = subprocess.run([_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
                           f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=10000",
                           "--dump-dom", page.as_uri()], capture_output=True, text=True, timeout=120)
     found = re.search(r'<pre id="probe">(.*?)</pre>', run.stdout, re.S)
     assert found, run.stdout[-2000:] + run.stderr[-2000:]
-    seen = json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&"))
+    probe = json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&"))
+    assert probe["errors"] == []
+    seen = probe["images"]
     embedded = re.findall(r'<img src="data:image/(?:png|gif|jpeg);base64,([A-Za-z0-9+/=]+)" alt="([^"]*)"', html)
     assert len(seen) == len(embedded) == html.count("<img ")
     walls = json.loads((out / "verify.json").read_text())["figures"]["walls"]
-    assert len(seen) == 3 * len(walls) + 5  # per wall 3; room, lens, heightmap, GIF, checks
+    # Per wall: target, LED, point light, Mitsuba; room, close-up, shape, heightmap, GIF, checks.
+    assert len(seen) == 4 * len(walls) + 6
     for (alt, complete, width, height), (data, alt_html) in zip(seen, embedded):
         with Image.open(io.BytesIO(base64.b64decode(data))) as im:
             assert complete and (width, height) == im.size, (alt, width, height, im.size)
-    for label in ("The lamp in its room", "The lens", "Radial offset from the plain cylinder",
+    for label in ("The lamp in its room", "The lens, close up", "Its shape", "The outer layer, unrolled",
                   "The walls during optimization", "Checks on the unrolled lens"):
         assert label in [s[0] for s in seen]
 

@@ -63,8 +63,9 @@ def optimize(build: Build) -> dict:
     bar.close()
     heights = state.heights
     build.save_heights(heights, radius_mm=d.lens.outer_radius_mm, height_mm=d.lens.height_mm)
-    # The optimizer's own picture of its result: verify compares the exported lens with it.
-    artifacts.write_npz(build.optimizer_render_file, **{
+    # The optimizer's own picture of its result, with the light it designed for: verify
+    # compares the exported lens's picture with the same light with it.
+    artifacts.write_npz(build.optimizer_render_file, light=opt.design_light, **{
         w.name: img for w, img in zip(build.walls, optimizer.render_all(heights, seed=opt.seed + 1))})
     steps = np.asarray(state.log).reshape(-1, 5)
     artifacts.write_csv(build.loss_file, steps, ["step", "level", "view", "loss", "seconds"],

@@ -19,7 +19,7 @@ def verify(build: Build) -> dict:
     bar = PartsBar("verify", ["tracing the exported lens", "tolerance study", "the lamp's renders", "report.html"])
     bar.begin("tracing the exported lens")
     figures = verify_mod.verify(build.design_file, build.verify_dir, v.image_px, v.photons,
-                                build.design.optimize.seed + 7, v.max_bounces)
+                                build.design.optimize.seed + 7, v.max_bounces, v.mitsuba_photons)
     bar.begin("tolerance study")
     if build.optimizer_render_file.exists():
         agree = verify_mod.optimizer_agreement(build.verify_dir, build.optimizer_render_file, list(figures["walls"]))

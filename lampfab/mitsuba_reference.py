@@ -1,0 +1,110 @@
+"""A second opinion from a renderer lampfab did not write: Mitsuba's light tracer.
+
+verify traces the exported lens with lampfab's own photon tracer (``trace``).  Here
+Mitsuba's ``ptracer`` renders the same ``design.json`` instead: the lens read back from
+its STL as a ``dielectric`` of the design's refractive index with flat facet normals
+(what is made), the LED as an emitter of its real shape and size (a sphere, or a
+filament's cylinder; or a point light), one diffuse wall at a time.  Mitsuba handles Fresnel at every surface, total internal
+reflection and every bounce in its own code, so agreement says the walls verify shows
+are the walls the lamp will light, not an artefact of one tracer.
+
+Each wall is seen by a perspective camera on the wall's axis, facing it squarely from
+the lamp's side, just clear of the lens (``ptracer`` connects light paths to a
+perspective sensor, never to an orthographic one).  Its film is the wall's picture:
+for a camera facing a plane squarely, the plane maps onto the film by a uniform scale,
+so film pixel (i, j) is wall pixel (i, j), with a box filter as verify bins photons.  A
+diffuse wall's radiance is proportional to its irradiance, so the film holds the flux
+per pixel up to one factor, which the comparison (Pearson r) ignores.  One wall per
+scene: light the other walls would scatter onto it is no part of verify's picture.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .room import Wall
+
+# The camera stands this far on the lamp's side of the lens's nearest point: the lens
+# must lie wholly behind it, out of its view.
+CAMERA_CLEARANCE_MM = 10.0
+
+# Interactions followed per light path: verify follows 8 interface crossings; a path
+# then needs one more vertex on the wall and room to spare for internal reflections.
+MAX_DEPTH = 12
+
+
+def _lens(mi, vertices: np.ndarray, faces: np.ndarray, ior: float):
+    """The lens as a Mitsuba mesh of flat facets (no vertex normals) of glass."""
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict({"type": "dielectric", "int_ior": float(ior), "ext_ior": 1.0})
+    mesh = mi.Mesh("lens", len(vertices), len(faces), props=props, has_vertex_normals=False,
+                   has_vertex_texcoords=False)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = mi.Float(np.ascontiguousarray(vertices, np.float32).ravel())
+    params["faces"] = mi.UInt(np.ascontiguousarray(faces, np.uint32).ravel())
+    params.update()
+    return mesh
+
+
+def light(light_mm: np.ndarray, radius_mm: float, length_mm: float = 0.0, radiance: float = 1.0) -> dict:
+    """The LED as a Mitsuba emitter: a point (``radius_mm`` 0), a glowing sphere, or with
+    ``length_mm`` a glowing cylinder on the lamp axis (a filament; open ends, as
+    ``trace.emit``'s).  Its surface is black: light coming back to it is absorbed."""
+    if radius_mm <= 0:
+        return {"type": "point", "position": light_mm.tolist(), "intensity": {"type": "spectrum", "value": radiance}}
+    body = {"bsdf": {"type": "diffuse", "reflectance": 0.0},
+            "emitter": {"type": "area", "radiance": {"type": "spectrum", "value": radiance}}}
+    if length_mm > 0:
+        half = np.array([0.0, 0.0, length_mm / 2])
+        return {"type": "cylinder", "p0": (light_mm - half).tolist(), "p1": (light_mm + half).tolist(),
+                "radius": float(radius_mm), **body}
+    return {"type": "sphere", "center": light_mm.tolist(), "radius": float(radius_mm), **body}
+
+
+def wall_camera(mi, wall: Wall, vertices: np.ndarray, shape: tuple[int, int], spp: int) -> dict:
+    """A perspective sensor facing ``wall`` squarely from the lamp's side, just clear
+    of the lens (``vertices`` (n, 3) mm), whose (rows, cols) film is the wall's picture."""
+    rows, cols = shape
+    nearest = float(((vertices - wall.origin) @ wall.normal).min())
+    distance = nearest - CAMERA_CLEARANCE_MM
+    if distance <= 0:
+        raise ValueError(f"the {wall.name} wall is no farther than the lens: no camera fits between them")
+    eye = wall.centre + wall.normal * distance
+    up = -wall.down / wall.height_mm
+    return {"type": "perspective", "fov_axis": "x",
+            "fov": float(np.degrees(2 * np.arctan(wall.width_mm / 2 / distance))),
+            "to_world": mi.ScalarTransform4f().look_at(eye.tolist(), wall.centre.tolist(), up.tolist()),
+            "film": {"type": "hdrfilm", "width": cols, "height": rows, "pixel_format": "luminance",
+                     "rfilter": {"type": "box"}},
+            "sampler": {"type": "independent", "sample_count": spp}}
+
+
+def render(vertices: np.ndarray, faces: np.ndarray, ior: float, light_mm: np.ndarray, radius_mm: float,
+           length_mm: float, walls: list[Wall], shapes: list[tuple[int, int]], photons: int,
+           seed: int) -> list[np.ndarray]:
+    """Mitsuba's ptracer picture of each wall: (rows, cols) float64 per wall, proportional
+    to its flux per pixel.  ``vertices`` (n, 3) mm and ``faces`` (m, 3): the closed lens
+    with outward normals; the LED as ``light``'s; about ``photons`` light paths per wall."""
+    from .mi_env import mitsuba
+
+    mi = mitsuba()
+    lens = _lens(mi, vertices, faces, ior)
+    images = []
+    for k, (wall, shape) in enumerate(zip(walls, shapes)):
+        spp = max(1, int(round(photons / (shape[0] * shape[1]))))
+        scene = mi.load_dict({
+            "type": "scene", "integrator": {"type": "ptracer", "max_depth": MAX_DEPTH, "hide_emitters": True},
+            "lens": lens, "light": light(light_mm, radius_mm, length_mm),
+            "wall": {"type": "rectangle", "to_world": _rectangle(mi, wall),
+                     "bsdf": {"type": "diffuse", "reflectance": 1.0}},
+            "camera": wall_camera(mi, wall, vertices, shape, spp)})
+        images.append(np.asarray(mi.render(scene, spp=spp, seed=seed + k), np.float64)[..., 0])
+    return images
+
+
+def _rectangle(mi, wall: Wall):
+    """Mitsuba's rectangle ([-1, 1]^2, normal +z) onto the wall's picture, facing the lamp."""
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = wall.right / 2, -wall.down / 2, wall.normal
+    m[:3, 3] = wall.centre
+    return mi.ScalarTransform4f(m)

@@ -1,0 +1,159 @@
+"""The sharpness budget plan reports before the long stages: how much the LED will blur
+each wall's picture, what would halve it, and whether the picture holds finer detail.
+
+The blur depends on the design, not only on the emitter (``sharpness``): a lens that
+spreads a sector's light over its whole height sees the LED smaller from its top and
+bottom than the plain cylinder does from its middle.  So plan designs this very image
+on a coarse grid (a few seconds; its blur came within 1-2 mm of the finished lens's on
+the apple and the text), builds that lens and traces the point light and the LED through
+it (``sharpness.Kernels``).
+
+What halves the blur follows from the optics, not a second trace: to first order the blur
+is proportional to the emitter's size, and scaling the whole lens by s with the walls
+where they are scales every angle the LED subtends, and so the blur, by 1/s.  Moving the
+walls closer shrinks the blur in millimetres but not in the picture's pixels, which
+shrink with the walls.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from .. import metrics, profile, room, sharpness
+
+# The coarse design: nodes around and up, photons, fitting rounds, correction passes.
+# 64 x 17 nodes took 7 s on 2 cores and gave the apple's finished blur within 1 mm
+# (58 x 81 mm against 58 x 80); 128 x 33 took 16 s for the same figures.
+COARSE_GRID = (64, 17)
+COARSE_PHOTONS = 100_000
+COARSE_ROUNDS = 2
+
+# Photons traced through the coarse lens, for each of the two lights: ~100 per surface
+# cell that lights a picture, enough for its kernel (sharpness.MIN_CELL_PHOTONS).
+BUDGET_PHOTONS = 2_000_000
+
+# Below this SSIM of the target against itself blurred by the LED, the picture holds
+# detail the lamp cannot show and plan says so.  The bundled pictures and scikit-image's
+# photographs score 0.88-0.99 at 64 px with the default LED; a picture of thin lines or
+# specks (a star field, a page of text) scores lower and looks soft on the wall.
+DETAIL_SSIM = 0.85
+
+# Text reads while the blur stays under this share of the letters' size (their em): the
+# blur then still leaves the gaps inside and between strokes (DejaVu Sans Bold's
+# counters are about a fifth of an em).  Measured with tesseract on the text targets
+# blurred by Gaussians: words read up to a blur of 0.1-0.3 em and none at 0.4 em.
+TEXT_BLUR_EM = 0.2
+
+# plan recommends the 128 px profile when the LED's blur is under this many pixels of
+# the 64 px design: a finer design would then show detail the LED does not blur away.
+FINER_DESIGN_BLUR_PX = 1.0
+
+
+def measure(build) -> dict:
+    """The LED's blur on each wall of a coarse design of ``build``'s image (a
+    ``build.Build``; the lens kind imports this module, and the build imports the kind):
+    figures for plan.json."""
+    from .. import trace
+
+    opt = build.design.optimize
+    coarse = dataclasses.replace(opt, grid_u=COARSE_GRID[0], grid_v=COARSE_GRID[1], transport_photons=COARSE_PHOTONS,
+                                 transport_rounds=COARSE_ROUNDS, transport_corrections=0)
+    heights, _ = build.transport_design(coarse, build.inner(), log=lambda _msg: None)
+    lens = build.kind.solid_maker(build)(heights)
+    scene = trace.MeshScene(lens.vertices, lens.faces)
+    cells = sharpness.Cells.for_photons(0.0, build.design.lens.height_mm, BUDGET_PHOTONS)
+    moments = []
+    for k, radius in enumerate((0.0, build.led.radius_mm)):
+        m = sharpness.Moments(cells, len(build.walls))
+        shapes = [room.image_shape(w, opt.sensor_px) for w in build.walls]
+        trace.render_walls(scene, build.light, radius, build.fab.ior, build.walls, shapes, BUDGET_PHOTONS,
+                           opt.seed + 101 + k, build.design.verify.max_bounces,
+                           light_length_mm=build.led.length_mm if radius else 0.0, kernel_moments=m)
+        moments.append(m)
+    kernels = sharpness.Kernels.of(*moments)
+    return summarize(build, kernels)
+
+
+def summarize(build, kernels: sharpness.Kernels) -> dict:
+    """plan.json's sharpness figures from the LED's ``kernels`` on a design of this build."""
+    px = build.design.optimize.sensor_px
+    targets = build.targets(px)
+    walls, worst = {}, []
+    for k, (wall, target) in enumerate(zip(build.walls, targets)):
+        d = kernels.diameters_mm(k, wall)
+        if d["horizontal"] is None:
+            continue
+        pixel_mm = wall.width_mm / px
+        blurred = sharpness.blur(target, kernels.field(k, wall, target.shape), wall)
+        walls[wall.name] = {
+            "led_blur_mm": {"horizontal": d["horizontal"][1], "vertical": d["vertical"][1]},
+            "led_blur_range_mm": {"horizontal": [d["horizontal"][0], d["horizontal"][2]],
+                                  "vertical": [d["vertical"][0], d["vertical"][2]]},
+            "led_blur_px": {"horizontal": d["horizontal"][1] / pixel_mm, "vertical": d["vertical"][1] / pixel_mm},
+            "resolvable_across": wall.width_mm / d["horizontal"][1],
+            "detail_ssim": metrics.ssim(blurred, target)}
+        worst.append(max(d["horizontal"][1], d["vertical"][1]))
+    figures = {"design_px": px, "led": profile.as_dict(build.led), "walls": walls,
+               "finest_detail_mm": float(np.median(worst)) if worst else None}
+    figures["halve"] = _halve(build, walls)
+    figures["warnings"] = _warnings(build, walls)
+    blur_px = max((max(w["led_blur_px"].values()) for w in walls.values()), default=None)
+    figures["finer_design"] = bool(blur_px is not None and blur_px < FINER_DESIGN_BLUR_PX
+                                   and px < 2 * build.design.verify.image_px)
+    return figures
+
+
+def _halve(build, walls: dict) -> str:
+    """One line: what would halve the blur of this design, with the figure each gives."""
+    if not walls:
+        return ""
+    h = float(np.median([w["led_blur_mm"]["horizontal"] for w in walls.values()]))
+    v = float(np.median([w["led_blur_mm"]["vertical"] for w in walls.values()]))
+    led, lens = build.led, build.design.lens
+    smaller = sorted((other for other in _led_profiles() if other.shape == led.shape and 0 < other.radius_mm
+                      <= led.radius_mm / 2 and other.length_mm <= led.length_mm), key=lambda o: -o.radius_mm)
+    if smaller:
+        s = smaller[0].radius_mm / led.radius_mm
+        emitter = (f"an LED at most half as wide (LED={smaller[0].name}, {smaller[0].radius_mm:g} mm radius: "
+                   f"{h * s:.0f} x {v * s:.0f} mm)")
+    else:
+        emitter = f"an LED half as wide ({led.radius_mm / 2:g} mm radius: {h / 2:.0f} x {v / 2:.0f} mm)"
+    return (f"LED blur {h:.0f} x {v:.0f} mm (across x up). To halve it: {emitter}, or a lens twice as large "
+            f"({2 * lens.outer_radius_mm:g} mm radius, {2 * lens.height_mm:g} mm tall: {h / 2:.0f} x {v / 2:.0f} mm); "
+            f"walls half as far halve it in mm, not in pixels (the pictures shrink with them)")
+
+
+def _warnings(build, walls: dict) -> list[str]:
+    """What the maker should know before the long stages (warnings, not errors)."""
+    from .. import targets
+
+    out = []
+    soft = [f"{name} {w['detail_ssim']:.2f}" for name, w in walls.items() if w["detail_ssim"] < DETAIL_SSIM]
+    if soft:
+        out.append(f"the picture holds detail finer than this LED can show: blurred by it, it scores SSIM "
+                   f"{', '.join(soft)} against itself (below {DETAIL_SSIM}); expect it soft, or choose a smaller LED")
+    prepared = build.stage_report("prepare")
+    sources = prepared["figures"] if prepared else {}
+    unreadable = []  # (wall, blur mm, em mm)
+    for wall in build.walls:
+        source = str(sources.get(f"{wall.name}_source", ""))
+        if not source.startswith("text: ") or wall.name not in walls:
+            continue
+        rows, cols = room.image_shape(wall, build.design.optimize.sensor_px)
+        em_mm = targets.text_layout(source[len("text: "):], rows, cols)[0] * wall.width_mm / cols
+        blur = max(walls[wall.name]["led_blur_mm"].values())
+        if blur > TEXT_BLUR_EM * em_mm:
+            unreadable.append((wall.name, blur, em_mm))
+    if unreadable:
+        names, blurs, ems = zip(*unreadable)
+        largest = min(TEXT_BLUR_EM * em / blur for _, blur, em in unreadable) * build.led.radius_mm
+        out.append(f"the text will not read with this LED on the {', '.join(names)} wall{'s' * (len(names) > 1)}: "
+                   f"its blur ({min(blurs):.0f}-{max(blurs):.0f} mm) is over {TEXT_BLUR_EM:g} of the letters' size "
+                   f"({min(ems):.0f} mm); use fewer words, or an LED of at most {largest:.2g} mm radius")
+    return out
+
+
+def _led_profiles() -> list[profile.Led]:
+    return [profile.load_led(str(p)) for p in sorted((profile.PROFILE_DIR / "led").glob("*.toml"))]

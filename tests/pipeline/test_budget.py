@@ -1,0 +1,48 @@
+"""plan's sharpness budget: what halves the blur, and the warnings for fine detail and text."""
+
+import json
+
+import pytest
+
+from lampfab import pipeline
+from lampfab.pipeline import budget
+
+
+def _walls(h, v, detail_ssim=0.95):
+    return {name: {"led_blur_mm": {"horizontal": h, "vertical": v}, "detail_ssim": detail_ssim}
+            for name in ("front", "left", "right")}
+
+
+@pytest.fixture
+def text_build(tmp_path):
+    """A build folder whose prepare report says every wall shows ``text``."""
+    def make(text: str, led: str = "star3535"):
+        out = tmp_path / "b"
+        out.mkdir(exist_ok=True)
+        figures = {f"{w}_source": f"text: {text}" for w in ("front", "left", "right")}
+        (out / "prepare.json").write_text(json.dumps({"figures": figures}))
+        return pipeline.Build.open(out, "default", "sla_resin", led)
+    return make
+
+
+def test_four_words_do_not_read_through_the_default_leds_blur(text_build):
+    build = text_build("Sweet dreams little one")
+    # The blur plan measured for this text with the default LED: 60 x 84 mm.
+    warnings = budget._warnings(build, _walls(60.0, 84.0))
+    assert len(warnings) == 1 and "will not read" in warnings[0] and "front, left, right" in warnings[0]
+    assert budget._warnings(build, _walls(20.0, 28.0)) == []  # a 0.5 mm die's blur: they read
+    assert budget._warnings(text_build("Hi"), _walls(60.0, 84.0)) == []  # two big letters read
+
+
+def test_detail_finer_than_the_blur_is_a_warning(text_build):
+    build = text_build("Hi")
+    soft = budget._warnings(build, _walls(60.0, 84.0, detail_ssim=0.6))
+    assert len(soft) == 1 and "finer than this LED can show" in soft[0]
+
+
+def test_what_halves_the_blur_comes_with_its_figures(text_build):
+    line = budget._halve(text_build("Hi"), _walls(60.0, 84.0))
+    # The 1 mm die is the largest bundled LED at most half as wide: a third of the blur.
+    assert "LED=die1mm" in line and "20 x 28 mm" in line
+    assert "a lens twice as large (90 mm radius, 180 mm tall: 30 x 42 mm)" in line
+    assert "not in pixels" in line
