@@ -28,9 +28,12 @@ def verify(build: Build) -> dict:
         figures["optimizer_match_min"] = min(agree.values())
         figures["optimizer_match_limit"] = OPTIMIZER_MATCH_R
     for name, f in figures["walls"].items():
-        log(f"verify: {name}: Pearson r {f['pearson']:.3f}, SSIM {f['ssim']:.3f}, {f['share']:.1%} of the light "
-            f"({figures['real_light']}: r {f['led_pearson']:.3f}); {f['ghost_share']:.1%} of it reflected "
-            f"inside the lens, SSIM {f['direct_ssim']:.3f} without it"
+        log(f"verify: {name}: with the {figures['real_light']} r {f['led_pearson']:.3f}, SSIM {f['led_ssim']:.3f}, "
+            f"{f['led_share']:.1%} of the light"
+            + (f" (a perfect outer surface: SSIM {f['led_ssim_ceiling']:.3f})" if "led_ssim_ceiling" in f else "")
+            + f"; with a point light r {f['pearson']:.3f}, SSIM {f['ssim']:.3f}, {f['ghost_share']:.1%} of it "
+              f"reflected inside the lens"
+            + (f"; Mitsuba r {f['mitsuba_pearson']:.3f}" if "mitsuba_pearson" in f else "")
             + (f"; r {f['optimizer_pearson']:.3f} against the optimizer's render" if "optimizer_pearson" in f else ""))
     if figures.get("optimizer_match_min", 1.0) < OPTIMIZER_MATCH_R:
         log(f"verify: WARNING: the exported lens's render matches the optimizer's only to r "

@@ -1,0 +1,157 @@
+#!/usr/bin/env python3
+"""Regenerate every result picture and table of README.md and docs/results.md from the
+current code, in one run.
+
+    .venv/bin/python examples/results.py             # every case: about 50 min on 2 cores
+    .venv/bin/python examples/results.py apple text  # only these cases
+
+Each case is one fresh `make lamp` into build/results/<name> (its wall time measured
+around make), then examples/figures.py's pictures, then the tables between the
+`<!-- results:NAME -->` and `<!-- /results:NAME -->` markers of README.md and
+docs/results.md, rewritten from every case's reports (a case not run this time keeps the
+figures its last build left).  scikit-image's samples are written to build/results/inputs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import figures  # noqa: E402 - examples/figures.py, beside this script
+
+ROOT = Path(__file__).resolve().parent.parent
+BUILDS = ROOT / "build" / "results"
+INPUTS = BUILDS / "inputs"
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    kind: str
+    make: tuple[str, ...]       # make's variables
+    sample: str = ""            # a scikit-image sample the case reads from INPUTS
+
+
+CASES = (
+    Case("apple", "silhouette (the bundled example)", ("TARGET=examples/apple.png",)),
+    Case("star", "silhouette", ("TARGET=examples/star.png",)),
+    Case("portrait", "continuous-tone picture", ("TARGET=examples/portrait.png",)),
+    Case("astronaut", "photograph (scikit-image's, NASA)", ("TARGET=examples/astronaut.png",)),
+    Case("horse", "silhouette with thin legs (scikit-image's)", ("TARGET=examples/horse.png",)),
+    Case("camera", "photograph (scikit-image's cameraman)", (f"TARGET={INPUTS / 'camera.png'}",), "camera"),
+    Case("text", "four words: \"Sweet dreams little one\"", ("TEXT=Sweet dreams little one",)),
+    Case("panorama", "360° panorama", ("PANORAMA=examples/panorama.png",)),
+    Case("apple_die1mm", "the apple with a 1 mm die (LED=die1mm)", ("TARGET=examples/apple.png", "LED=die1mm")),
+    Case("panel", "the source's prior-work panel (PROFILE=panel)", ("PROFILE=panel",)),
+)
+
+
+def run(case: Case) -> float:
+    """A fresh make lamp of ``case``; its wall time in seconds."""
+    if case.sample:
+        from skimage import data, io
+
+        INPUTS.mkdir(parents=True, exist_ok=True)
+        io.imsave(INPUTS / f"{case.sample}.png", getattr(data, case.sample)(), check_contrast=False)
+    shutil.rmtree(BUILDS / case.name, ignore_errors=True)
+    t0 = time.monotonic()
+    done = subprocess.run(["make", "--no-print-directory", "lamp", f"BUILD={BUILDS}", f"NAME={case.name}",
+                           *case.make], cwd=ROOT, capture_output=True, text=True)
+    seconds = time.monotonic() - t0
+    if done.returncode:
+        sys.exit(f"make lamp for {case.name} failed:\n{done.stdout[-3000:]}{done.stderr[-3000:]}")
+    (BUILDS / case.name / "make_seconds.txt").write_text(f"{seconds:.1f}\n")
+    return seconds
+
+
+def _reports(name: str) -> dict:
+    folder = BUILDS / name
+    out = {}
+    for stage, file in (("plan", "plan"), ("fabcheck", "checks"), ("verify", "verify"), ("export", "export")):
+        path = folder / f"{file}.json"
+        if path.exists():
+            out[stage] = json.loads(path.read_text())
+    out["stage_seconds"] = sum(json.loads(p.read_text()).get("wall_time_s", 0.0) for p in folder.glob("*.json")
+                               if p.name not in ("settings.json", "design.json", "checks.failed.json"))
+    made = folder / "make_seconds.txt"
+    out["make_seconds"] = float(made.read_text()) if made.exists() else None
+    return out
+
+
+def _span(values, digits=3) -> str:
+    lo, hi = f"{min(values):.{digits}f}", f"{max(values):.{digits}f}"
+    return lo if lo == hi else f"{lo}-{hi}"
+
+
+def _row(case: Case, short: bool) -> str | None:
+    r = _reports(case.name)
+    if "verify" not in r:
+        return None
+    walls = list(r["verify"]["figures"]["walls"].values())
+    failed = [c["name"] for c in r["fabcheck"]["figures"]["checks"] if c["applies"] and not c["passed"]]
+    checks = "pass" if not failed else "fails " + ", ".join(failed)
+    minutes = f"{(r['make_seconds'] or r['stage_seconds']) / 60:.1f} min"
+    led = f"{_span([w['led_pearson'] for w in walls])} / {_span([w['led_ssim'] for w in walls], 2)}"
+    point = f"{_span([w['pearson'] for w in walls])} / {_span([w['ssim'] for w in walls], 2)}"
+    blur = [w["led_blur_mm"] for w in walls if "led_blur_mm" in w]
+    blur_text = (f"{_span([b['horizontal'] for b in blur], 0)} x {_span([b['vertical'] for b in blur], 0)} mm"
+                 if blur else "—")
+    mitsuba = [w["mitsuba_pearson"] for w in walls if "mitsuba_pearson" in w]
+    if short:
+        return f"| {case.name} | {case.kind} | {led} | {point} | {blur_text} | {checks} | {minutes} |"
+    ceiling = [w["led_ssim_ceiling"] for w in walls if "led_ssim_ceiling" in w]
+    reference = [w["led_reference_ssim"] for w in walls if "led_reference_ssim" in w]
+    share = sum(w["led_share"] for w in walls)
+    return (f"| {case.name} | {led} | {point} | {_span(reference, 2) if reference else '—'} | "
+            f"{_span(ceiling, 2) if ceiling else '—'} | {blur_text} | {_span(mitsuba) if mitsuba else '—'} | "
+            f"{share:.0%} | {checks} | {r['stage_seconds']:.0f} s / {minutes} |")
+
+
+TABLES = {
+    "summary": ("| image | what it is | with the LED: r / SSIM | ideal point light: r / SSIM | LED blur (across x up) "
+                "| checks | `make lamp` |\n|---|---|---|---|---|---|---|", True),
+    "full": ("| case | with the LED: r / SSIM | point light: r / SSIM | SSIM of the target blurred by the LED "
+             "| ... with the lens's reflections | LED blur | Mitsuba vs verify (r) | light on the walls | checks "
+             "| by stage / `make lamp` |\n|---|---|---|---|---|---|---|---|---|---|", False),
+}
+
+
+def write_tables(paths=(ROOT / "README.md", ROOT / "docs" / "results.md")) -> None:
+    """Rewrite every ``<!-- results:NAME -->`` block of ``paths`` from the builds."""
+    for path in paths:
+        text = path.read_text()
+        for name, (head, short) in TABLES.items():
+            rows = [row for row in (_row(c, short) for c in CASES if c.name != "panel" or not short) if row]
+            block = "\n".join([head, *rows])
+            text = re.sub(rf"(<!-- results:{name} -->\n).*?(\n<!-- /results:{name} -->)",
+                          lambda m: m.group(1) + block + m.group(2), text, flags=re.S)
+        path.write_text(text)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("names", nargs="*", help=f"cases to run (default: all of {', '.join(c.name for c in CASES)})")
+    parser.add_argument("--tables-only", action="store_true", help="rewrite the tables from the builds there are")
+    args = parser.parse_args()
+    unknown = set(args.names) - {c.name for c in CASES}
+    if unknown:
+        parser.error(f"unknown case {sorted(unknown)[0]}; choose from {', '.join(c.name for c in CASES)}")
+    if not args.tables_only:
+        for case in CASES:
+            if args.names and case.name not in args.names:
+                continue
+            seconds = run(case)
+            print(f"{case.name}: make lamp {seconds / 60:.1f} min -> {figures.figure(case.name, BUILDS)}", flush=True)
+    write_tables()
+
+
+if __name__ == "__main__":
+    main()
