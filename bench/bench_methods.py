@@ -13,7 +13,7 @@ onto the fabrication limits, merged with the inner layer and the LED bore: the s
 whose triangles lens.stl holds) and traced with its true facets, as verify does (the
 profile's ``[verify] photons``, stratified; 64 px wide, point light): Pearson r and SSIM
 per wall, and the share of the emitted light on the walls.  Prints a table and the ratios; --record appends them to
-bench/RESULTS.md with the machine.
+today's file in bench/log/ with the machine.
 """
 
 from __future__ import annotations
@@ -88,7 +88,7 @@ def main() -> None:
     ap.add_argument("--ptracer-steps", type=int, default=0,
                     help="the ptracer method's schedule length (default: what fits the largest budget, from its "
                          "first step)")
-    ap.add_argument("--record", action="store_true", help="append the table to bench/RESULTS.md")
+    ap.add_argument("--record", action="store_true", help="append the table to today's file in bench/log/")
     args = ap.parse_args()
     budgets = sorted(args.budgets)
 
@@ -182,8 +182,9 @@ def report(args, budgets, ptracer_rows, init_rows, splat_rows, ptracer_steps, ph
     text = "\n".join(lines)
     print(text)
     if args.record:
-        with open(ROOT / "bench" / "RESULTS.md", "a") as fh:
-            fh.write(text + "\n")
+        from log_section import append
+
+        print(f"recorded in {append(text)}")
 
 
 if __name__ == "__main__":

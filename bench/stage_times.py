@@ -10,7 +10,7 @@ and its own ``lampfab`` first on PYTHONPATH.  After the prepare stage (and the s
 between it and the first timed one) each timed stage runs ``--rounds`` times,
 alternating base and head, so both see the same machine; a stage's time is the
 ``wall_time_s`` of its report.  Prints the medians and head/base ratios; --record
-appends them to bench/RESULTS.md with the machine.
+appends them to today's file in bench/log/ with the machine.
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def main() -> None:
     ap.add_argument("--fab", default="sla_resin")
     ap.add_argument("--stages", nargs="+", default=["init", "optimize"], choices=PIPELINE[1:])
     ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--record", action="store_true", help="append the table to bench/RESULTS.md")
+    ap.add_argument("--record", action="store_true", help="append the table to today's file in bench/log/")
     args = ap.parse_args()
 
     with tempfile.TemporaryDirectory(prefix="lampfab-stage-times-") as tmp:
@@ -109,11 +109,12 @@ def main() -> None:
     table = "\n".join(lines)
     print(table)
     if args.record:
-        header = (f"\n## Stage times: {args.base} against {head_name} ({Path(args.image).name}, profile "
+        from log_section import append
+
+        header = (f"## Stage times: {args.base} against {head_name} ({Path(args.image).name}, profile "
                   f"{args.profile}, {args.fab}; {platform.machine()}, {os.cpu_count()} cores; median of "
                   f"{args.rounds} alternating rounds)\n\n")
-        with open(ROOT / "bench/RESULTS.md", "a") as f:
-            f.write(header + table + "\n")
+        print(f"recorded in {append(header + table)}")
 
 
 if __name__ == "__main__":

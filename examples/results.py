@@ -2,13 +2,13 @@
 """Regenerate every result picture and table of README.md and docs/results.md from the
 current code, in one run.
 
-    .venv/bin/python examples/results.py             # every case: about 50 min on 2 cores
+    .venv/bin/python examples/results.py             # every case: about an hour on 2 cores
     .venv/bin/python examples/results.py apple text  # only these cases
 
 Each case is one fresh `make lamp` into build/results/<name> (its wall time measured
 around make), then examples/figures.py's pictures, then the tables between the
-`<!-- results:NAME -->` and `<!-- /results:NAME -->` markers of README.md and
-docs/results.md, rewritten from every case's reports (a case not run this time keeps the
+`<!-- results:NAME -->` and `<!-- /results:NAME -->` markers of README.md,
+docs/results.md and docs/fabrication.md, rewritten from every case's reports (a case not run this time keeps the
 figures its last build left).  scikit-image's samples are written to build/results/inputs.
 """
 
@@ -38,6 +38,7 @@ class Case:
     kind: str
     make: tuple[str, ...]       # make's variables
     sample: str = ""            # a scikit-image sample the case reads from INPUTS
+    tables: tuple[str, ...] = ("summary", "full", "times")  # the tables it is a row of
 
 
 CASES = (
@@ -47,10 +48,15 @@ CASES = (
     Case("astronaut", "photograph (scikit-image's, NASA)", ("TARGET=examples/astronaut.png",)),
     Case("horse", "silhouette with thin legs (scikit-image's)", ("TARGET=examples/horse.png",)),
     Case("camera", "photograph (scikit-image's cameraman)", (f"TARGET={INPUTS / 'camera.png'}",), "camera"),
+    Case("rocket", "photograph (scikit-image's launch pad at dusk)", (f"TARGET={INPUTS / 'rocket.png'}",), "rocket"),
     Case("text", "four words: \"Sweet dreams little one\"", ("TEXT=Sweet dreams little one",)),
     Case("panorama", "360° panorama", ("PANORAMA=examples/panorama.png",)),
     Case("apple_die1mm", "the apple with a 1 mm die (LED=die1mm)", ("TARGET=examples/apple.png", "LED=die1mm")),
-    Case("panel", "the source's prior-work panel (PROFILE=panel)", ("PROFILE=panel",)),
+    Case("panel", "the source's prior-work panel (PROFILE=panel)", ("PROFILE=panel",), tables=("full", "times")),
+    Case("apple_cnc4", "the apple milled on 4 axes (FAB=acrylic_cnc4)", ("TARGET=examples/apple.png",
+                                                                         "FAB=acrylic_cnc4"), tables=("milled", "times")),
+    Case("apple_cnc3", "the apple milled on 3 axes (FAB=acrylic_cnc3)", ("TARGET=examples/apple.png",
+                                                                         "FAB=acrylic_cnc3"), tables=("milled", "times")),
 )
 
 
@@ -79,8 +85,10 @@ def _reports(name: str) -> dict:
         path = folder / f"{file}.json"
         if path.exists():
             out[stage] = json.loads(path.read_text())
-    out["stage_seconds"] = sum(json.loads(p.read_text()).get("wall_time_s", 0.0) for p in folder.glob("*.json")
-                               if p.name not in ("settings.json", "design.json", "checks.failed.json"))
+    names = {"fabcheck": "checks"}
+    out["stage_times"] = {stage: json.loads((folder / f"{names.get(stage, stage)}.json").read_text())["wall_time_s"]
+                          for stage in STAGES if (folder / f"{names.get(stage, stage)}.json").exists()}
+    out["stage_seconds"] = sum(out["stage_times"].values())
     made = folder / "make_seconds.txt"
     out["make_seconds"] = float(made.read_text()) if made.exists() else None
     return out
@@ -91,10 +99,17 @@ def _span(values, digits=3) -> str:
     return lo if lo == hi else f"{lo}-{hi}"
 
 
-def _row(case: Case, short: bool) -> str | None:
+STAGES = ("prepare", "plan", "init", "optimize", "solid", "fabcheck", "export", "verify")
+
+
+def _row(case: Case, table: str) -> str | None:
     r = _reports(case.name)
     if "verify" not in r:
         return None
+    if table == "times":
+        seconds = [r["stage_times"].get(stage) for stage in STAGES]
+        return (f"| {case.name} | " + " | ".join("—" if t is None else f"{t:.1f}" for t in seconds)
+                + f" | {r['stage_seconds']:.0f} | {(r['make_seconds'] or 0) / 60:.1f} min |")
     walls = list(r["verify"]["figures"]["walls"].values())
     failed = [c["name"] for c in r["fabcheck"]["figures"]["checks"] if c["applies"] and not c["passed"]]
     checks = "pass" if not failed else "fails " + ", ".join(failed)
@@ -105,7 +120,7 @@ def _row(case: Case, short: bool) -> str | None:
     blur_text = (f"{_span([b['horizontal'] for b in blur], 0)} x {_span([b['vertical'] for b in blur], 0)} mm"
                  if blur else "—")
     mitsuba = [w["mitsuba_pearson"] for w in walls if "mitsuba_pearson" in w]
-    if short:
+    if table in ("summary", "milled"):
         return f"| {case.name} | {case.kind} | {led} | {point} | {blur_text} | {checks} | {minutes} |"
     ceiling = [w["led_ssim_ceiling"] for w in walls if "led_ssim_ceiling" in w]
     reference = [w["led_reference_ssim"] for w in walls if "led_reference_ssim" in w]
@@ -115,24 +130,27 @@ def _row(case: Case, short: bool) -> str | None:
             f"{share:.0%} | {checks} | {r['stage_seconds']:.0f} s / {minutes} |")
 
 
+_SHORT = ("| {first} | what it is | with the LED: r / SSIM | ideal point light: r / SSIM | LED blur (across x up) "
+          "| checks | `make lamp` |\n|---|---|---|---|---|---|---|")
 TABLES = {
-    "summary": ("| image | what it is | with the LED: r / SSIM | ideal point light: r / SSIM | LED blur (across x up) "
-                "| checks | `make lamp` |\n|---|---|---|---|---|---|---|", True),
+    "summary": _SHORT.format(first="image"),
+    "milled": _SHORT.format(first="case"),
+    "times": ("| case | " + " | ".join(STAGES) + " | by stage (s) | `make lamp` |\n|" + "---|" * (len(STAGES) + 3)),
     "full": ("| case | with the LED: r / SSIM | point light: r / SSIM | SSIM of the target blurred by the LED "
              "| ... with the lens's reflections | LED blur | Mitsuba vs verify (r) | light on the walls | checks "
-             "| by stage / `make lamp` |\n|---|---|---|---|---|---|---|---|---|---|", False),
+             "| by stage / `make lamp` |\n|---|---|---|---|---|---|---|---|---|---|"),
 }
 
 
-def write_tables(paths=(ROOT / "README.md", ROOT / "docs" / "results.md")) -> None:
+def write_tables(paths=(ROOT / "README.md", ROOT / "docs" / "results.md", ROOT / "docs" / "fabrication.md")) -> None:
     """Rewrite every ``<!-- results:NAME -->`` block of ``paths`` from the builds."""
     for path in paths:
         text = path.read_text()
-        for name, (head, short) in TABLES.items():
-            rows = [row for row in (_row(c, short) for c in CASES if c.name != "panel" or not short) if row]
+        for name, head in TABLES.items():
+            rows = [row for row in (_row(c, name) for c in CASES if name in c.tables) if row]
             block = "\n".join([head, *rows])
-            text = re.sub(rf"(<!-- results:{name} -->\n).*?(\n<!-- /results:{name} -->)",
-                          lambda m: m.group(1) + block + m.group(2), text, flags=re.S)
+            text = re.sub(rf"(<!-- results:{name} -->\n).*?(<!-- /results:{name} -->)",
+                          lambda m: m.group(1) + block + "\n" + m.group(2), text, flags=re.S)
         path.write_text(text)
 
 

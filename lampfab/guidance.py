@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import html as _html
 
-from .profile import Fabrication
+from .profile import Fabrication, Led
 from .room import SECTOR_CENTRE_DEG, SECTOR_WIDTH_DEG
 
 _AXIS = {0.0: "+x", 90.0: "+y", 180.0: "-x", 270.0: "-y"}
@@ -48,7 +48,7 @@ def orientation(wall_names: list[str]) -> str:
             "much the same from every side.")
 
 
-def advice(fab: Fabrication, wall_names: list[str], light_mm, study: dict) -> list[str]:
+def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: dict) -> list[str]:
     """Plain-text paragraphs: orientation, the LED, finishing, the polishing allowance."""
     allowance = study["allowance_mm"] * 1000
     bound = "at least " if study["allowance_at_least"] else ""
@@ -56,9 +56,9 @@ def advice(fab: Fabrication, wall_names: list[str], light_mm, study: dict) -> li
     within = study["profile_error_drop"] <= study["r_drop"]
     out = [
         orientation(wall_names),
-        (f"The LED goes up through the bore in the base (radius {fab.mount_radius_mm:g} mm) on a stalk, its "
-         f"emitter at the lamp's centre, {light_mm[2]:g} mm above the base on the axis; the design assumes it "
-         f"shines in every direction from there."),
+        (f"The LED ({led.part}) goes up through the bore in the base ({2 * fab.mount_radius_mm:g} mm across) on "
+         f"a stalk, its emitter at the lamp's centre, {light_mm[2]:g} mm above the base on the axis; the design "
+         f"assumes it shines in every direction from there, with the size of its profile ({led.name})."),
         _FINISH[fab.process],
         (f"Polishing allowance: uneven removal of up to {bound}{allowance:.0f} um (peak, over patches of "
          f"~{study['correlation_mm']:g} mm) keeps every wall's Pearson r within {study['r_drop']} of the design. "

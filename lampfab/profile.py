@@ -110,7 +110,8 @@ class Optimize:
 @dataclass(frozen=True)
 class Verify:
     image_px: int = _spec(64, 8, 4096, doc="verify image width in pixels")
-    photons: int = _spec(16_000_000, 10_000, 2_000_000_000, doc="photons per verify render (and the plan's)")
+    photons: int = _spec(16_000_000, 10_000, 2_000_000_000, doc="photons per verify render (a quarter of them for "
+                                                                        "plan's plain lens and the room picture's walls)")
     study_photons: int = _spec(1_000_000, 10_000, 2_000_000_000,
                                doc="photons per render of the tolerance study (eight or nine renders; the same photons "
                                    "in each, so their differences are not noise)")

@@ -242,4 +242,6 @@ def _real_light(light: dict) -> str:
     """The second render's light, in words."""
     if light.get("type") == "collimated":
         return f"beam ±{light['divergence_deg']:g}°"
+    if light.get("length", 0.0) > 0:
+        return f"{light['length']:g} mm filament"
     return f"LED {light['radius']:g} mm"

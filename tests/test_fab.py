@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from lampfab import guidance, lens, room, tolerance_study, trace
-from lampfab.profile import load_fabrication
+from lampfab.profile import load_fabrication, load_led
 
 from tests.helpers import CYL, bumps, inner
 
@@ -54,15 +54,15 @@ def test_guidance_names_the_sides_finishing_and_allowance():
              "amplitudes_mm": [0.0, 0.02, 0.05, 0.1], "max_drop": [0.0, 0.004, 0.01, 0.05],
              "walls": {"front": [0.9, 0.896, 0.89, 0.85]}}
     fab = load_fabrication("acrylic_cnc3")
-    text = guidance.advice(fab, ["front", "left", "right"], np.array([0.0, 0.0, 45.0]), study)
+    text = guidance.advice(fab, load_led("mini1616"), ["front", "left", "right"], np.array([0.0, 0.0, 45.0]), study)
     joined = " ".join(text)
     assert "+y side (u 45 to 135 deg) lights the front wall" in joined
     assert "-x side (u 135 to 225 deg) lights the left wall" in joined
     assert "2000 grit" in joined and "Anneal" in joined and "witness lines" in joined
     assert "up to 50 um" in joined and "costs r 0.004 (within it)" in joined
-    assert "radius 12.5 mm" in joined
+    assert "25 mm across" in joined and "Cree XLamp XQ-D" in joined and "(mini1616)" in joined
     page = guidance.html(text, study)
     assert page.count("<tr>") == 5 and '<td class="fail">0.050</td>' in page and "20 um (profile)" in page
-    sla = " ".join(guidance.advice(load_fabrication("sla_resin"), ["front"], np.zeros(3),
+    sla = " ".join(guidance.advice(load_fabrication("sla_resin"), load_led("star3535"), ["front"], np.zeros(3),
                                    {**study, "profile_error_drop": 0.03}))
     assert "clear coat" in sla and "finish more carefully" in sla and "witness" not in sla

@@ -46,9 +46,10 @@ DETAIL_SSIM = 0.85
 # blurred by Gaussians: words read up to a blur of 0.1-0.3 em and none at 0.4 em.
 TEXT_BLUR_EM = 0.2
 
-# plan recommends the 128 px profile when the LED's blur is under this many pixels of
-# the 64 px design: a finer design would then show detail the LED does not blur away.
+# plan recommends the 128 px profile (hires) when the LED's blur is under this many pixels
+# of a coarser design: a finer design would then show detail the LED does not blur away.
 FINER_DESIGN_BLUR_PX = 1.0
+FINER_DESIGN_PX = 128
 
 
 def measure(build) -> dict:
@@ -64,10 +65,10 @@ def measure(build) -> dict:
     lens = build.kind.solid_maker(build)(heights)
     scene = trace.MeshScene(lens.vertices, lens.faces)
     cells = sharpness.Cells.for_photons(0.0, build.design.lens.height_mm, BUDGET_PHOTONS)
+    shapes = [room.image_shape(w, opt.sensor_px) for w in build.walls]
     moments = []
     for k, radius in enumerate((0.0, build.led.radius_mm)):
         m = sharpness.Moments(cells, len(build.walls))
-        shapes = [room.image_shape(w, opt.sensor_px) for w in build.walls]
         trace.render_walls(scene, build.light, radius, build.fab.ior, build.walls, shapes, BUDGET_PHOTONS,
                            opt.seed + 101 + k, build.design.verify.max_bounces,
                            light_length_mm=build.led.length_mm if radius else 0.0, kernel_moments=m)
@@ -100,8 +101,7 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
     figures["halve"] = _halve(build, walls)
     figures["warnings"] = _warnings(build, walls)
     blur_px = max((max(w["led_blur_px"].values()) for w in walls.values()), default=None)
-    figures["finer_design"] = bool(blur_px is not None and blur_px < FINER_DESIGN_BLUR_PX
-                                   and px < 2 * build.design.verify.image_px)
+    figures["finer_design"] = bool(blur_px is not None and blur_px < FINER_DESIGN_BLUR_PX and px < FINER_DESIGN_PX)
     return figures
 
 
@@ -112,14 +112,17 @@ def _halve(build, walls: dict) -> str:
     h = float(np.median([w["led_blur_mm"]["horizontal"] for w in walls.values()]))
     v = float(np.median([w["led_blur_mm"]["vertical"] for w in walls.values()]))
     led, lens = build.led, build.design.lens
-    smaller = sorted((other for other in _led_profiles() if other.shape == led.shape and 0 < other.radius_mm
-                      <= led.radius_mm / 2 and other.length_mm <= led.length_mm), key=lambda o: -o.radius_mm)
-    if smaller:
-        s = smaller[0].radius_mm / led.radius_mm
-        emitter = (f"an LED at most half as wide (LED={smaller[0].name}, {smaller[0].radius_mm:g} mm radius: "
-                   f"{h * s:.0f} x {v * s:.0f} mm)")
+    if led.shape == "cylinder":  # a filament's length makes the blur up the wall
+        emitter = f"a filament half as long ({led.length_mm / 2:g} mm: {v / 2:.0f} mm up the wall)"
     else:
-        emitter = f"an LED half as wide ({led.radius_mm / 2:g} mm radius: {h / 2:.0f} x {v / 2:.0f} mm)"
+        smaller = sorted((o for o in _led_profiles() if o.shape == "sphere" and 0 < o.radius_mm <= led.radius_mm / 2),
+                         key=lambda o: -o.radius_mm)
+        if smaller:
+            s = smaller[0].radius_mm / led.radius_mm
+            emitter = (f"an LED at most half as wide (LED={smaller[0].name}, {smaller[0].radius_mm:g} mm radius: "
+                       f"{h * s:.0f} x {v * s:.0f} mm)")
+        else:
+            emitter = f"an LED half as wide ({led.radius_mm / 2:g} mm radius: {h / 2:.0f} x {v / 2:.0f} mm)"
     return (f"LED blur {h:.0f} x {v:.0f} mm (across x up). To halve it: {emitter}, or a lens twice as large "
             f"({2 * lens.outer_radius_mm:g} mm radius, {2 * lens.height_mm:g} mm tall: {h / 2:.0f} x {v / 2:.0f} mm); "
             f"walls half as far halve it in mm, not in pixels (the pictures shrink with them)")

@@ -184,7 +184,7 @@ class Lamp(LensKind):
                      f"{study['allowance_mm'] * 1000:.0f} µm; the profile's {fab.surface_error_mm * 1000:.0f} µm "
                      f"costs r {study['profile_error_drop']:.3f}")
         return {"tolerance": study,
-                "guidance": guidance.advice(fab, [w.name for w in build.walls], build.light, study)}
+                "guidance": guidance.advice(fab, build.led, [w.name for w in build.walls], build.light, study)}
 
     def report_light(self, build, design: dict) -> dict:
         return design["light"]

@@ -46,3 +46,8 @@ def test_what_halves_the_blur_comes_with_its_figures(text_build):
     assert "LED=die1mm" in line and "20 x 28 mm" in line
     assert "a lens twice as large (90 mm radius, 180 mm tall: 30 x 42 mm)" in line
     assert "not in pixels" in line
+
+
+def test_a_filaments_blur_up_the_wall_halves_with_its_length(text_build):
+    line = budget._halve(text_build("Hi", led="filament26"), _walls(44.0, 720.0))
+    assert "a filament half as long (13 mm: 360 mm up the wall)" in line

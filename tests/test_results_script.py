@@ -1,0 +1,46 @@
+"""examples/results.py rewrites the tables between its markers from the builds' reports."""
+
+import importlib.util
+import json
+import sys
+
+from tests.helpers import ROOT
+
+
+def _load():
+    spec = importlib.util.spec_from_file_location("results", ROOT / "examples" / "results.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+def _fake_build(folder, led_r):
+    folder.mkdir(parents=True)
+    wall = {"led_pearson": led_r, "led_ssim": 0.61, "pearson": 0.96, "ssim": 0.45, "led_share": 0.186,
+            "led_blur_mm": {"horizontal": 59.4, "vertical": 81.2}, "led_reference_ssim": 0.945,
+            "led_ssim_ceiling": 0.68, "mitsuba_pearson": 0.9952}
+    reports = {"verify": {"walls": {"front": wall, "left": {**wall, "led_ssim": 0.64}}},
+               "checks": {"checks": [{"name": "min_wall", "applies": True, "passed": True}]},
+               "plan": {}, "export": {}, "prepare": {}, "init": {}, "optimize": {}, "solid": {}}
+    for name, figures in reports.items():
+        (folder / f"{name}.json").write_text(json.dumps({"figures": figures, "wall_time_s": 10.0}))
+    (folder / "make_seconds.txt").write_text("270.0\n")
+
+
+def test_the_tables_are_rewritten_between_their_markers_and_nowhere_else(tmp_path, monkeypatch):
+    results = _load()
+    monkeypatch.setattr(results, "BUILDS", tmp_path / "builds")
+    _fake_build(tmp_path / "builds" / "apple", 0.9912)
+    page = tmp_path / "page.md"
+    page.write_text("before\n<!-- results:summary -->\nold row\n<!-- /results:summary -->\nafter\n"
+                    "<!-- results:times -->\n<!-- /results:times -->\n")
+    results.write_tables([page])
+    text = page.read_text()
+    assert text.startswith("before\n<!-- results:summary -->\n| image |") and text.endswith("<!-- /results:times -->\n")
+    assert "old row" not in text and "after" in text
+    row = next(line for line in text.splitlines() if line.startswith("| apple |"))
+    assert "| 0.991 / 0.61-0.64 | 0.960 / 0.45 | 59 x 81 mm | pass | 4.5 min |" in row
+    assert "| apple | 10.0 | 10.0 |" in text and "| 80 | 4.5 min |" in text  # 8 stages of 10 s
+    results.write_tables([page])  # a second run finds its own output between the markers
+    assert page.read_text() == text
