@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Regenerate every result picture and table of README.md and docs/results.md from the
-current code, in one run.
+"""Regenerate every result picture and table of README.md, docs/ and bench/RESULTS.md
+from the current code, in one run.
 
     .venv/bin/python examples/results.py             # every case: about an hour on 2 cores
     .venv/bin/python examples/results.py apple text  # only these cases
@@ -8,8 +8,8 @@ current code, in one run.
 Each case is one fresh `make lamp` into build/results/<name> (its wall time measured
 around make), then examples/figures.py's pictures, then the tables between the
 `<!-- results:NAME -->` and `<!-- /results:NAME -->` markers of README.md,
-docs/results.md and docs/fabrication.md, rewritten from every case's reports (a case not run this time keeps the
-figures its last build left).  scikit-image's samples are written to build/results/inputs.
+docs/results.md, docs/fabrication.md and bench/RESULTS.md, rewritten from every case's
+reports (a case not run this time keeps the figures its last build left).  scikit-image's samples are written to build/results/inputs.
 """
 
 from __future__ import annotations
@@ -50,8 +50,15 @@ CASES = (
     Case("camera", "photograph (scikit-image's cameraman)", (f"TARGET={INPUTS / 'camera.png'}",), "camera"),
     Case("rocket", "photograph (scikit-image's launch pad at dusk)", (f"TARGET={INPUTS / 'rocket.png'}",), "rocket"),
     Case("text", "four words: \"Sweet dreams little one\"", ("TEXT=Sweet dreams little one",)),
+    Case("text_mini1616", "the four words with a 1.6 mm LED (LED=mini1616), as plan recommends",
+         ("TEXT=Sweet dreams little one", "LED=mini1616")),
+    Case("words", "four other words: \"Welcome home dear friend\"", ("TEXT=Welcome home dear friend",)),
     Case("panorama", "360° panorama", ("PANORAMA=examples/panorama.png",)),
     Case("apple_die1mm", "the apple with a 1 mm die (LED=die1mm)", ("TARGET=examples/apple.png", "LED=die1mm")),
+    Case("apple_floor", "the apple on three walls and the floor (PROFILE=floor)",
+         ("TARGET=examples/apple.png", "PROFILE=floor"), tables=("full", "times")),
+    Case("apple_hires", "the apple at 128 px with a 1 mm die (PROFILE=hires LED=die1mm)",
+         ("TARGET=examples/apple.png", "PROFILE=hires", "LED=die1mm"), tables=("full", "times")),
     Case("panel", "the source's prior-work panel (PROFILE=panel)", ("PROFILE=panel",), tables=("full", "times")),
     Case("apple_cnc4", "the apple milled on 4 axes (FAB=acrylic_cnc4)", ("TARGET=examples/apple.png",
                                                                          "FAB=acrylic_cnc4"), tables=("milled", "times")),
@@ -120,14 +127,18 @@ def _row(case: Case, table: str) -> str | None:
     blur_text = (f"{_span([b['horizontal'] for b in blur], 0)} x {_span([b['vertical'] for b in blur], 0)} mm"
                  if blur else "—")
     mitsuba = [w["mitsuba_pearson"] for w in walls if "mitsuba_pearson" in w]
+    read = [f"{w['led_words_read']}/{w['words']}" for w in walls if "words" in w]
+    kind = case.kind + (f"; OCR reads {', '.join(read)} words with the LED" if read else "")
     if table in ("summary", "milled"):
-        return f"| {case.name} | {case.kind} | {led} | {point} | {blur_text} | {checks} | {minutes} |"
+        return f"| {case.name} | {kind} | {led} | {point} | {blur_text} | {checks} | {minutes} |"
     ceiling = [w["led_ssim_ceiling"] for w in walls if "led_ssim_ceiling" in w]
     reference = [w["led_reference_ssim"] for w in walls if "led_reference_ssim" in w]
     share = sum(w["led_share"] for w in walls)
+    dark = [w["led_contrast_ratio"] for w in walls if w.get("led_contrast_ratio")]
     return (f"| {case.name} | {led} | {point} | {_span(reference, 2) if reference else '—'} | "
             f"{_span(ceiling, 2) if ceiling else '—'} | {blur_text} | {_span(mitsuba) if mitsuba else '—'} | "
-            f"{share:.0%} | {checks} | {r['stage_seconds']:.0f} s / {minutes} |")
+            f"{share:.0%} | {_span(dark, 0) + ':1' if dark else '—'} | {checks} | "
+            f"{r['stage_seconds']:.0f} s / {minutes} |")
 
 
 _SHORT = ("| {first} | what it is | with the LED: r / SSIM | ideal point light: r / SSIM | LED blur (across x up) "
@@ -137,12 +148,15 @@ TABLES = {
     "milled": _SHORT.format(first="case"),
     "times": ("| case | " + " | ".join(STAGES) + " | by stage (s) | `make lamp` |\n|" + "---|" * (len(STAGES) + 3)),
     "full": ("| case | with the LED: r / SSIM | point light: r / SSIM | SSIM of the target blurred by the LED "
-             "| ... with the lens's reflections | LED blur | Mitsuba vs verify (r) | light on the walls | checks "
-             "| by stage / `make lamp` |\n|---|---|---|---|---|---|---|---|---|---|"),
+             "| ... with the lens's reflections | LED blur | Mitsuba vs verify (r) | light on the walls "
+             "| contrast on black (LED) | checks | by stage / `make lamp` |\n|---|---|---|---|---|---|---|---|---|---|---|"),
 }
 
 
-def write_tables(paths=(ROOT / "README.md", ROOT / "docs" / "results.md", ROOT / "docs" / "fabrication.md")) -> None:
+PAGES = (ROOT / "README.md", ROOT / "docs" / "results.md", ROOT / "docs" / "fabrication.md", ROOT / "bench" / "RESULTS.md")
+
+
+def write_tables(paths=PAGES) -> None:
     """Rewrite every ``<!-- results:NAME -->`` block of ``paths`` from the builds."""
     for path in paths:
         text = path.read_text()

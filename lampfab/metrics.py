@@ -94,3 +94,27 @@ def ssim_data_range(normalized_target: np.ndarray) -> float:
 def compare(render, target) -> dict:
     """{"pearson": r, "ssim": s} of a render against its target."""
     return {"pearson": pearson(render, target), "ssim": ssim(render, target)}
+
+
+# The target's "black" and "bright" for ``contrast``: under 5 % of its peak (the
+# silhouettes' backgrounds, the letterbox bars; a photograph's shadows rarely go that
+# dark) and over half of it.  A target with less than 5 % of its pixels black has no
+# background to keep dark, and gets no contrast figure.
+BLACK_OF_PEAK, BRIGHT_OF_PEAK = 0.05, 0.5
+MIN_BLACK_SHARE = 0.05
+
+
+def contrast(render, target) -> dict | None:
+    """How dark the render keeps the target's black: {"ratio": mean light on the target's
+    bright pixels over mean light on its black ones, "black_share": the share of the
+    render's light that falls on the black}; None where the target has no black.  The
+    ratio is None where no light at all falls on the black."""
+    r, t = _pair(render, target)
+    peak = float(t.max())
+    black, bright = t < BLACK_OF_PEAK * peak, t > BRIGHT_OF_PEAK * peak
+    total = float(r.sum())
+    if peak <= 0 or black.mean() < MIN_BLACK_SHARE or not bright.any() or total <= 0:
+        return None
+    dark = float(r[black].mean())
+    return {"ratio": float(r[bright].mean()) / dark if dark > 0 else None,
+            "black_share": float(r[black].sum()) / total}

@@ -86,6 +86,10 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
     Returns {"walls": {name: {pearson, ssim, share, ghost_share, direct_ssim, ssim_ceiling,
     led_pearson, led_ssim, led_share, ...}}, "lost_share", "trapped_share", ...}.
 
+    Where the target has a black background (``metrics.contrast``), ``contrast_ratio``
+    and ``black_share`` (point light) and ``led_contrast_ratio`` and ``led_black_share``
+    say how dark the lamp keeps it.
+
     ``ghost_share`` is the part of the wall's light that was reflected inside the lens
     (Fresnel ghosts), ``direct_ssim`` the SSIM of the rest (the light the outer surface
     steers: the design's own contrast), and ``ssim_ceiling`` the SSIM of the target
@@ -133,6 +137,10 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
             "ghost_share": float(ghosts.sum() / max(point[k].sum(), 1e-300)),
             "direct_ssim": metrics.ssim(direct, target), "ssim_ceiling": metrics.ssim(exact + ghosts, target),
             "led_pearson": blur["pearson"], "led_ssim": blur["ssim"], "led_share": led_info["shares"][k]}
+        for prefix, render in (("", point[k]), ("led_", led[k])):
+            dark = metrics.contrast(render, target)
+            if dark is not None:
+                f.update({f"{prefix}contrast_ratio": dark["ratio"], f"{prefix}black_share": dark["black_share"]})
         arrays = {"point": point[k], "led": led[k], "ghosts": ghosts}
         if kernels is not None and len(kernels.on(k, wall)):
             f.update(_led_reference(kernels, k, wall, target, point[k], led[k], led_info["ghosts"][k], arrays))
@@ -235,6 +243,20 @@ def optimizer_agreement(out_dir, reference_npz, names: list[str]) -> dict[str, f
         mine = artifacts.read_npz(wall_files(out_dir, name)[2])[light]
         theirs = np.asarray(reference[name], np.float64)
         out[name] = metrics.pearson(image.letterbox(mine, *theirs.shape), theirs)
+    return out
+
+
+def words_read(out_dir, texts: dict[str, str]) -> dict[str, dict]:
+    """How many of each wall's words Tesseract reads in verify's renders of it
+    (``wall_files``; ``texts``: {wall: its phrase}): {wall: {"words", "led_words_read",
+    "point_words_read"}}."""
+    from . import ocr
+
+    out = {}
+    for name, phrase in texts.items():
+        renders = artifacts.read_npz(wall_files(out_dir, name)[2])
+        out[name] = {"words": len(ocr.words(phrase)), "led_words_read": ocr.words_read(renders["led"], phrase),
+                     "point_words_read": ocr.words_read(renders["point"], phrase)}
     return out
 
 

@@ -5,6 +5,7 @@
 #  - Chromium: the test suite opens report.html in a real headless browser.
 #  - ADMesh: the STL checker slicers' repair code descends from; export asks it whether
 #    lens.stl needs any repair (none may be needed), and the tests do too.
+#  - Tesseract OCR: verify reads a text lamp's words back from its renders.
 #  - python3-venv: Debian ships Python without ensurepip, which `python3 -m venv` needs.
 set -euo pipefail
 if ! python3 -c 'import sys; sys.exit(sys.version_info < (3, 11))' 2>/dev/null; then
@@ -16,7 +17,8 @@ have_llvm() { ls /usr/lib/*/libLLVM-19.so* /usr/lib/llvm-19/lib/libLLVM*.so* >/d
 have_gl() { ldconfig -p | grep -q 'libGL.so.1' && ldconfig -p | grep -q 'libgthread-2.0.so.0'; }
 have_browser() { command -v chromium >/dev/null || command -v chromium-browser >/dev/null; }
 have_admesh() { command -v admesh >/dev/null; }
-if have_llvm && have_gl && have_browser && have_admesh && have_venv; then exit 0; fi
+have_ocr() { command -v tesseract >/dev/null; }
+if have_llvm && have_gl && have_browser && have_admesh && have_ocr && have_venv; then exit 0; fi
 if ! command -v apt-get >/dev/null; then
   echo "lampfab setup: need libLLVM 19, libGL, ADMesh and Python's venv; install them with your package manager" >&2
   exit 1
@@ -27,3 +29,6 @@ DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libllvm19 libgl1 lib
 # Only the tests need the browser: a distribution without the package still designs lamps.
 DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null \
   || echo "lampfab setup: could not install chromium; the report's browser test will fail" >&2
+# Only text lamps use OCR: without it they are designed as well, their words not read back.
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq tesseract-ocr >/dev/null \
+  || echo "lampfab setup: could not install tesseract-ocr; verify will not read text lamps' words back" >&2

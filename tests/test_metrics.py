@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from lampfab import metrics
 from lampfab.metrics import compare, pearson, ssim
 
 
@@ -89,3 +90,16 @@ def test_shape_mismatch_and_nan_raise(target):
     bad[0, 0] = np.nan
     with pytest.raises(ValueError):
         ssim(bad, target)
+
+
+def test_contrast_is_bright_light_over_the_light_left_on_the_black():
+    target = np.zeros((20, 20))
+    target[5:15, 5:15] = 1.0  # a quarter of the wall bright, the rest black
+    render = target * 9.0 + 1.0  # every pixel gets 1 of haze
+    c = metrics.contrast(render, target)
+    assert c["ratio"] == pytest.approx(10.0)
+    assert c["black_share"] == pytest.approx(300 / (100 * 10 + 300))
+    # All the light on the picture: nothing on the black.
+    assert metrics.contrast(target, target) == {"ratio": None, "black_share": 0.0}
+    # A picture without a black background (a photograph's range) has no such figure.
+    assert metrics.contrast(render, np.linspace(0.2, 1.0, 400).reshape(20, 20)) is None

@@ -39,6 +39,9 @@ STAGES = ("prepare", "plan", "init", "optimize", "solid", "fabcheck", "export", 
 # The fabrication check's report keeps the name it has always had, beside checks.png.
 _REPORT_NAMES = {"fabcheck": "checks"}
 
+# How prepare's report names a wall's source when it shows words: this, then the phrase.
+TEXT_SOURCE = "text: "
+
 
 def _artifact(*parts: str) -> property:
     """A ``Build`` property: the path of one artifact in the build folder."""
@@ -236,6 +239,13 @@ class Build:
         """A finished stage's report, None before it ran."""
         path = self.report_file(stage)
         return artifacts.read_json(path) if path.exists() else None
+
+    def wall_texts(self) -> dict[str, str]:
+        """{wall name: its phrase} for the walls prepare set words on ({} before it ran)."""
+        prepared = self.stage_report("prepare")
+        figures = prepared["figures"] if prepared else {}
+        return {w.name: str(figures[f"{w.name}_source"])[len(TEXT_SOURCE):] for w in self.walls
+                if str(figures.get(f"{w.name}_source", "")).startswith(TEXT_SOURCE)}
 
     def checks_report(self) -> dict | None:
         """The fabrication check's report, passed or failed (None before it ran)."""

@@ -105,6 +105,10 @@ def _facts(build: Build, figures: dict, plan: dict, checks: list) -> list[tuple[
     walls = figures["walls"].values()
     out = [("What you will see (LED)", f"r {span([w['led_pearson'] for w in walls], _two)}, "
                                        f"SSIM {span([w['led_ssim'] for w in walls], _two)}")]
+    read = [w for w in walls if "words" in w]
+    if read:
+        out.append(("Words read back by OCR (LED)", ", ".join(f"{w['led_words_read']}/{w['words']}" for w in read)
+                    + " on the walls with words"))
     blur = [w["led_blur_mm"] for w in walls if "led_blur_mm" in w]
     if blur:
         px = build.design.verify.image_px
@@ -137,6 +141,10 @@ def _walls(build: Build, figures: dict) -> list:
                     ("light", percent(f["led_share"]))]
         if "led_ssim_ceiling" in f:
             led_figs.append(("a perfect design's SSIM", number(f["led_ssim_ceiling"])))
+        if f.get("led_contrast_ratio"):
+            led_figs.append(("contrast on black", f"{f['led_contrast_ratio']:.0f}:1"))
+        if "words" in f:
+            led_figs.append(("words read by OCR", f"{f['led_words_read']}/{f['words']}"))
         pictures = [
             Picture("Target", build.target_preview(name)),
             Picture(f"With the {light} (what you will see)", led_png, led_figs),
@@ -158,6 +166,11 @@ def _groups(build: Build, figures: dict, plan: dict) -> dict:
     light = [("Light on each picture (LED)", span([w["led_share"] for w in walls], percent)),
              ("Reflected inside the lens (Fresnel)", span([w["ghost_share"] for w in walls], percent)),
              ("Missing every wall", percent(figures["lost_share"]))]
+    dark = [w for w in walls if w.get("led_contrast_ratio")]
+    if dark:
+        light += [("Contrast on the picture's black (LED: bright over black)",
+                   span([w["led_contrast_ratio"] for w in dark], lambda x: f"{x:.0f}:1")),
+                  ("LED light falling on the black", span([w["led_black_share"] for w in dark], percent))]
     lux = _lux(build, figures)
     if lux:
         light.append(("Brightness", lux))

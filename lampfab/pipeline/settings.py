@@ -13,7 +13,7 @@ from pathlib import Path
 
 from .. import artifacts
 from ..errors import LampfabError
-from .build import STAGES, Build
+from .build import STAGES, TEXT_SOURCE, Build
 
 
 def snapshot(build: Build, images: dict[str, str], text: str = "") -> bool:
@@ -62,7 +62,7 @@ def target_sources(build: Build, target: str, per_wall: dict[str, str], text: st
     LampfabError where the walls' sources are missing or contradict each other."""
     if text and panorama:
         raise LampfabError("TEXT and PANORAMA both given: choose one (per-wall TARGET_<WALL> images may be added)")
-    common = f"text: {text}" if text else f"panorama {panorama}" if panorama else target
+    common = f"{TEXT_SOURCE}{text}" if text else f"panorama {panorama}" if panorama else target
     sources = {w.name: per_wall.get(w.name) or common for w in build.walls}
     if not all(sources.values()):
         raise LampfabError("no target image given: set TARGET=path/to/image.png (or TEXT=\"...\" or PANORAMA=...)")

@@ -95,6 +95,12 @@ def test_text_lamp_end_to_end(text_lamp):
     assert lines[-1].startswith("total") and "report.html" in lines[-1]
     # The tiny profile's lens projects the letters at r 0.80-0.82.
     assert min(_wall_pearsons(out)) > 0.7
+    # verify read every wall's words back (whether a tiny lamp's read is test_ocr's
+    # business) and says so on the verify line.
+    walls = json.loads((out / "verify.json").read_text())["figures"]["walls"]
+    for name, f in walls.items():
+        assert f["words"] == 2 and 0 <= f["led_words_read"] <= 2 and 0 <= f["point_words_read"] <= 2, name
+    assert re.search(r"front r \S+ SSIM \S+ \d/2 words read", lines[-2]), lines[-2]
 
 
 @pytest.mark.slow

@@ -16,10 +16,15 @@ def verify(build: Build) -> dict:
     v = build.design.verify
     report = build.begin("verify", {"design": build.design_file, "stl": build.lens_stl})
     # Its parts take a minute together with nothing to print between them: a bar by part.
-    bar = PartsBar("verify", ["tracing the exported lens", "tolerance study", "the lamp's renders", "report.html"])
+    texts = build.wall_texts()
+    bar = PartsBar("verify", ["tracing the exported lens", *(["reading the words back"] if texts else []),
+                              "tolerance study", "the lamp's renders", "report.html"])
     bar.begin("tracing the exported lens")
     figures = verify_mod.verify(build.design_file, build.verify_dir, v.image_px, v.photons,
                                 build.design.optimize.seed + 7, v.max_bounces, v.mitsuba_photons)
+    if texts:
+        bar.begin("reading the words back")
+        _read_words(build, figures, texts)
     bar.begin("tolerance study")
     if build.optimizer_render_file.exists():
         agree = verify_mod.optimizer_agreement(build.verify_dir, build.optimizer_render_file, list(figures["walls"]))
@@ -31,6 +36,7 @@ def verify(build: Build) -> dict:
         log(f"verify: {name}: with the {figures['real_light']} r {f['led_pearson']:.3f}, SSIM {f['led_ssim']:.3f}, "
             f"{f['led_share']:.1%} of the light"
             + (f" (a perfect outer surface: SSIM {f['led_ssim_ceiling']:.3f})" if "led_ssim_ceiling" in f else "")
+            + (f", contrast on black {f['led_contrast_ratio']:.0f}:1" if f.get("led_contrast_ratio") else "")
             + f"; with a point light r {f['pearson']:.3f}, SSIM {f['ssim']:.3f}, {f['ghost_share']:.1%} of it "
               f"reflected inside the lens"
             + (f"; Mitsuba r {f['mitsuba_pearson']:.3f}" if "mitsuba_pearson" in f else "")
@@ -47,3 +53,19 @@ def verify(build: Build) -> dict:
     report_page.write(build, figures, pictures)
     bar.close()
     return report.data
+
+
+def _read_words(build: Build, figures: dict, texts: dict[str, str]) -> None:
+    """Tesseract's reading of the walls' words, into ``figures``' walls, and its log line."""
+    from ... import ocr
+    from ... import verify as verify_mod
+
+    if not ocr.available():
+        log("verify: install tesseract-ocr (make setup does) to have the walls' words read back")
+        return
+    for name, read in verify_mod.words_read(build.verify_dir, texts).items():
+        figures["walls"][name].update(read)
+    walls = {n: f for n, f in figures["walls"].items() if "words" in f}
+    log(f"verify: words read back by OCR (Tesseract) with the {figures['real_light']}: "
+        + ", ".join(f"{n} {f['led_words_read']}/{f['words']}" for n, f in walls.items())
+        + "; with a point light: " + ", ".join(f"{n} {f['point_words_read']}/{f['words']}" for n, f in walls.items()))

@@ -1,0 +1,73 @@
+"""Reading a text lamp's walls back: Tesseract OCR (Debian's ``tesseract-ocr``) on a
+render, counting the words of the phrase it finds.
+
+Tesseract reads the render's linear light (the wall's physical contrast between strokes
+and gaps), as dark letters on white, the way its models were trained.  It does not read
+the display's sRGB encoding of a soft picture: that encoding lifts the dim light between
+blurred strokes, and there Tesseract read none of four words even of the sharp target
+blurred by a fifth of an em, which a person reads easily.  On linear light its limit
+matches a person's: words read up to a blur of 0.3-0.4 em and not at 0.5 em, where the
+blur leaves too little contrast at two cycles per letter, below which people stop
+reading (Legge, Pelli, Rubin & Schleske, "Psychophysics of reading I", Vision Research
+25, 1985).  bench/text_blur.py measures it.
+
+A wall rendered at the design's resolution (64 px across: an em of about 11 px) is far
+below the 20-30 px letters Tesseract reads best, so the render is scaled up first.  A
+phrase's word counts once for each time it appears.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import tempfile
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+# Scale-up before reading: 8 x puts the 64 px walls' letters at 80-90 px, inside the
+# size range Tesseract reads best; 4 x lost words on the four-word phrase's targets.
+UPSCALE = 8
+
+# The brightest light counted as white: a few hot pixels of a photon render (where
+# strokes cross) would otherwise push every stroke to grey.
+WHITE_PERCENTILE = 99.5
+
+
+def available() -> bool:
+    """Whether the ``tesseract`` program is installed."""
+    return shutil.which("tesseract") is not None
+
+
+def words(text: str) -> list[str]:
+    """``text``'s words, lower case, letters and digits only."""
+    return [w for w in re.sub(r"[^0-9a-z]+", " ", text.lower()).split() if w]
+
+
+def read(image: np.ndarray) -> list[str]:
+    """The words Tesseract reads in ``image`` ((h, w) float, linear light, any scale)."""
+    from PIL import Image
+
+    white = float(np.percentile(image, WHITE_PERCENTILE))
+    light = np.clip(image / white, 0.0, 1.0) if white > 0 else np.zeros_like(image)
+    page = Image.fromarray(np.uint8(np.round(255 * (1.0 - light))))  # dark letters on white
+    page = page.resize((page.width * UPSCALE, page.height * UPSCALE), Image.Resampling.BICUBIC)
+    return words(_tesseract(page))
+
+
+def words_read(image: np.ndarray, phrase: str) -> int:
+    """How many of ``phrase``'s words Tesseract reads in ``image``."""
+    return sum((Counter(words(phrase)) & Counter(read(image))).values())
+
+
+def _tesseract(page) -> str:
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "wall.png"
+        page.save(path)
+        # --psm 6: one block of text, the layout targets.text_image sets.
+        done = subprocess.run(["tesseract", str(path), "-", "--psm", "6"], capture_output=True, text=True)
+    if done.returncode:
+        raise RuntimeError(f"tesseract failed: {done.stderr.strip()[-300:]}")
+    return done.stdout
