@@ -90,6 +90,10 @@ def verdict(build: Build, figures: dict, checks: list) -> tuple[str, str]:
                       f"weakest wall)"), "warn"
     else:
         look, tone = f"Projects your picture poorly (r {r:.2f} on its weakest wall)", "bad"
+    read = [w for w in walls.values() if "words" in w]
+    if read:
+        look += (f"; OCR reads {sum(w['led_words_read'] for w in read)} of its {sum(w['words'] for w in read)} "
+                 f"words on the walls")
     failed = [c.name for c in checks if c.failed]
     if failed:
         return f"{look}, but fails the {', '.join(failed)} check for {build.fab.name}: see below.", "bad"

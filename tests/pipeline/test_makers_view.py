@@ -101,6 +101,7 @@ def test_text_lamp_end_to_end(text_lamp):
     for name, f in walls.items():
         assert f["words"] == 2 and 0 <= f["led_words_read"] <= 2 and 0 <= f["point_words_read"] <= 2, name
     assert re.search(r"front r \S+ SSIM \S+ \d/2 words read", lines[-2]), lines[-2]
+    assert re.search(r"OCR reads \d of its 6 words on the walls", (out / "report.html").read_text())
 
 
 @pytest.mark.slow
