@@ -150,6 +150,16 @@ class Kernels:
         return {axis: [_weighted_quantile(DIAMETER_SIGMAS * np.sqrt(self.cov_mm2[sel, i]), w, q) for q in quantiles]
                 for i, axis in ((0, "horizontal"), (1, "vertical"))}
 
+    def blur_figures(self, k: int, wall: Wall) -> dict | None:
+        """plan's and verify's figures of wall ``k``'s blur: {"led_blur_mm": the median
+        diameters {"horizontal", "vertical"}, "led_blur_range_mm": their 10-90 % range};
+        None where no cell lands inside the picture."""
+        d = self.diameters_mm(k, wall)
+        if d["horizontal"] is None:
+            return None
+        return {"led_blur_mm": {axis: q[1] for axis, q in d.items()},
+                "led_blur_range_mm": {axis: [q[0], q[2]] for axis, q in d.items()}}
+
     def field(self, k: int, wall: Wall, shape: tuple[int, int]) -> np.ndarray:
         """The kernel at each pixel of wall ``k``'s (rows, cols) picture: (rows, cols, 3)
         covariance (xx, yy, xy) in mm^2, the flux-weighted Gaussian average of the

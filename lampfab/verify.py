@@ -80,7 +80,7 @@ def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bo
 
 
 def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bounces: int,
-           mitsuba_photons: int = 0) -> dict:
+           mitsuba_photons: int = 0, texts: dict[str, str] | None = None) -> dict:
     """Render point-light and LED-size images, compare with the targets, write images.
 
     Returns {"walls": {name: {pearson, ssim, share, ghost_share, direct_ssim, ssim_ceiling,
@@ -88,7 +88,9 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
 
     Where the target has a black background (``metrics.contrast``), ``contrast_ratio``
     and ``black_share`` (point light) and ``led_contrast_ratio`` and ``led_black_share``
-    say how dark the lamp keeps it.
+    say how dark the lamp keeps it.  A wall with words (``texts``: {wall: its phrase})
+    gets ``words`` and how many of them Tesseract reads in each render
+    (``led_words_read``, ``point_words_read``; ``ocr``).
 
     ``ghost_share`` is the part of the wall's light that was reflected inside the lens
     (Fresnel ghosts), ``direct_ssim`` the SSIM of the rest (the light the outer surface
@@ -141,6 +143,8 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
             dark = metrics.contrast(render, target)
             if dark is not None:
                 f.update({f"{prefix}contrast_ratio": dark["ratio"], f"{prefix}black_share": dark["black_share"]})
+        if texts and wall.name in texts:
+            f.update(_words_read(texts[wall.name], point[k], led[k]))
         arrays = {"point": point[k], "led": led[k], "ghosts": ghosts}
         if kernels is not None and len(kernels.on(k, wall)):
             f.update(_led_reference(kernels, k, wall, target, point[k], led[k], led_info["ghosts"][k], arrays))
@@ -167,11 +171,8 @@ def _led_reference(kernels, k: int, wall: room.Wall, target: np.ndarray, point: 
     field = kernels.field(k, wall, target.shape)
     reference = sharpness.blur(target, field, wall)
     exact = reference / max(float(reference.sum()), 1e-300) * float((led - led_ghosts).sum())
-    d = kernels.diameters_mm(k, wall)
     arrays["led_reference"] = reference
-    return {"led_blur_mm": {"horizontal": d["horizontal"][1], "vertical": d["vertical"][1]},
-            "led_blur_range_mm": {"horizontal": [d["horizontal"][0], d["horizontal"][2]],
-                                  "vertical": [d["vertical"][0], d["vertical"][2]]},
+    return {**kernels.blur_figures(k, wall),
             "led_reference_pearson": metrics.pearson(reference, target),
             "led_reference_ssim": metrics.ssim(reference, target),
             "led_ssim_ceiling": metrics.ssim(exact + led_ghosts, target),
@@ -246,18 +247,12 @@ def optimizer_agreement(out_dir, reference_npz, names: list[str]) -> dict[str, f
     return out
 
 
-def words_read(out_dir, texts: dict[str, str]) -> dict[str, dict]:
-    """How many of each wall's words Tesseract reads in verify's renders of it
-    (``wall_files``; ``texts``: {wall: its phrase}): {wall: {"words", "led_words_read",
-    "point_words_read"}}."""
+def _words_read(phrase: str, point: np.ndarray, led: np.ndarray) -> dict:
+    """How many of ``phrase``'s words Tesseract reads in a wall's two renders."""
     from . import ocr
 
-    out = {}
-    for name, phrase in texts.items():
-        renders = artifacts.read_npz(wall_files(out_dir, name)[2])
-        out[name] = {"words": len(ocr.words(phrase)), "led_words_read": ocr.words_read(renders["led"], phrase),
-                     "point_words_read": ocr.words_read(renders["point"], phrase)}
-    return out
+    return {"words": len(ocr.words(phrase)), "led_words_read": ocr.words_read(led, phrase),
+            "point_words_read": ocr.words_read(point, phrase)}
 
 
 def _real_light(light: dict) -> str:

@@ -84,19 +84,16 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
     targets = build.targets(px)
     walls, worst = {}, []
     for k, (wall, target) in enumerate(zip(build.walls, targets)):
-        d = kernels.diameters_mm(k, wall)
-        if d["horizontal"] is None:
+        blur = kernels.blur_figures(k, wall)
+        if blur is None:
             continue
-        pixel_mm = wall.width_mm / px
+        median = blur["led_blur_mm"]
         blurred = sharpness.blur(target, kernels.field(k, wall, target.shape), wall)
         walls[wall.name] = {
-            "led_blur_mm": {"horizontal": d["horizontal"][1], "vertical": d["vertical"][1]},
-            "led_blur_range_mm": {"horizontal": [d["horizontal"][0], d["horizontal"][2]],
-                                  "vertical": [d["vertical"][0], d["vertical"][2]]},
-            "led_blur_px": {"horizontal": d["horizontal"][1] / pixel_mm, "vertical": d["vertical"][1] / pixel_mm},
-            "resolvable_across": wall.width_mm / d["horizontal"][1],
+            **blur, "led_blur_px": {axis: mm / (wall.width_mm / px) for axis, mm in median.items()},
+            "resolvable_across": wall.width_mm / median["horizontal"],
             "detail_ssim": metrics.ssim(blurred, target)}
-        worst.append(max(d["horizontal"][1], d["vertical"][1]))
+        worst.append(max(median.values()))
     figures = {"design_px": px, "led": profile.as_dict(build.led), "walls": walls,
                "finest_detail_mm": float(np.median(worst)) if worst else None}
     figures["halve"] = _halve(build, walls)
@@ -116,11 +113,10 @@ def _halve(build, walls: dict) -> str:
     if led.shape == "cylinder":  # a filament's length makes the blur up the wall
         emitter = f"a filament half as long ({led.length_mm / 2:g} mm: {v / 2:.0f} mm up the wall)"
     else:
-        smaller = sorted((o for o in _led_profiles() if o.shape == "sphere" and 0 < o.radius_mm <= led.radius_mm / 2),
-                         key=lambda o: -o.radius_mm)
+        smaller = _largest_led(led.radius_mm / 2)
         if smaller:
-            s = smaller[0].radius_mm / led.radius_mm
-            emitter = (f"an LED at most half as wide (LED={smaller[0].name}, {smaller[0].radius_mm:g} mm radius: "
+            s = smaller.radius_mm / led.radius_mm
+            emitter = (f"an LED at most half as wide (LED={smaller.name}, {smaller.radius_mm:g} mm radius: "
                        f"{h * s:.0f} x {v * s:.0f} mm)")
         else:
             emitter = f"an LED half as wide ({led.radius_mm / 2:g} mm radius: {h / 2:.0f} x {v / 2:.0f} mm)"
@@ -139,27 +135,28 @@ def _warnings(build, walls: dict) -> list[str]:
         out.append(f"the picture holds detail finer than this LED can show: blurred by it, it scores SSIM "
                    f"{', '.join(soft)} against itself (below {DETAIL_SSIM}); expect it soft, or choose a smaller LED")
     unreadable = []  # (wall, blur mm, em mm)
-    for name, phrase in build.wall_texts().items():
-        if name not in walls:
+    texts = build.wall_texts()
+    for wall in build.walls:
+        if wall.name not in texts or wall.name not in walls:
             continue
-        wall = next(w for w in build.walls if w.name == name)
         rows, cols = room.image_shape(wall, build.design.optimize.sensor_px)
-        em_mm = targets.text_layout(phrase, rows, cols)[0] * wall.width_mm / cols
-        blur = max(walls[name]["led_blur_mm"].values())
+        em_mm = targets.text_layout(texts[wall.name], rows, cols)[0] * wall.width_mm / cols
+        blur = max(walls[wall.name]["led_blur_mm"].values())
         if blur > TEXT_BLUR_EM * em_mm:
-            unreadable.append((name, blur, em_mm))
+            unreadable.append((wall.name, blur, em_mm))
     if unreadable:
         names, blurs, ems = zip(*unreadable)
         largest = min(TEXT_BLUR_EM * em / blur for _, blur, em in unreadable) * build.led.radius_mm
-        fits = sorted((o for o in _led_profiles() if o.shape == "sphere" and 0 < o.radius_mm <= largest),
-                      key=lambda o: -o.radius_mm)
-        led = (f"LED={fits[0].name} ({fits[0].radius_mm:g} mm radius)" if fits
-               else f"an LED of at most {largest:.2g} mm radius")
+        fits = _largest_led(largest)
+        led = f"LED={fits.name} ({fits.radius_mm:g} mm radius)" if fits else f"an LED of at most {largest:.2g} mm radius"
         out.append(f"the text may not read whole with this LED on the {', '.join(names)} wall{'s' * (len(names) > 1)}: "
                    f"its blur ({min(blurs):.0f}-{max(blurs):.0f} mm) is over {TEXT_BLUR_EM:g} of the letters' size "
                    f"({min(ems):.0f} mm); use fewer words, or {led}")
     return out
 
 
-def _led_profiles() -> list[profile.Led]:
-    return [profile.load_led(str(p)) for p in sorted((profile.PROFILE_DIR / "led").glob("*.toml"))]
+def _largest_led(max_radius_mm: float) -> profile.Led | None:
+    """The bundled ball-shaped LED of the largest radius up to ``max_radius_mm``."""
+    balls = [profile.load_led(str(p)) for p in sorted((profile.PROFILE_DIR / "led").glob("*.toml"))]
+    return max((o for o in balls if o.shape == "sphere" and 0 < o.radius_mm <= max_radius_mm),
+               key=lambda o: o.radius_mm, default=None)

@@ -16,15 +16,16 @@ def verify(build: Build) -> dict:
     v = build.design.verify
     report = build.begin("verify", {"design": build.design_file, "stl": build.lens_stl})
     # Its parts take a minute together with nothing to print between them: a bar by part.
-    texts = build.wall_texts()
-    bar = PartsBar("verify", ["tracing the exported lens", *(["reading the words back"] if texts else []),
-                              "tolerance study", "the lamp's renders", "report.html"])
+    texts = _ocr_texts(build)
+    bar = PartsBar("verify", ["tracing the exported lens", "tolerance study", "the lamp's renders", "report.html"])
     bar.begin("tracing the exported lens")
     figures = verify_mod.verify(build.design_file, build.verify_dir, v.image_px, v.photons,
-                                build.design.optimize.seed + 7, v.max_bounces, v.mitsuba_photons)
-    if texts:
-        bar.begin("reading the words back")
-        _read_words(build, figures, texts)
+                                build.design.optimize.seed + 7, v.max_bounces, v.mitsuba_photons, texts)
+    read = {n: f for n, f in figures["walls"].items() if "words" in f}
+    if read:
+        log(f"verify: words read back by OCR (Tesseract) with the {figures['real_light']}: "
+            + ", ".join(f"{n} {f['led_words_read']}/{f['words']}" for n, f in read.items())
+            + "; with a point light: " + ", ".join(f"{n} {f['point_words_read']}/{f['words']}" for n, f in read.items()))
     bar.begin("tolerance study")
     if build.optimizer_render_file.exists():
         agree = verify_mod.optimizer_agreement(build.verify_dir, build.optimizer_render_file, list(figures["walls"]))
@@ -55,17 +56,12 @@ def verify(build: Build) -> dict:
     return report.data
 
 
-def _read_words(build: Build, figures: dict, texts: dict[str, str]) -> None:
-    """Tesseract's reading of the walls' words, into ``figures``' walls, and its log line."""
+def _ocr_texts(build: Build) -> dict[str, str]:
+    """The walls' phrases for verify to read back ({} without words or without Tesseract)."""
     from ... import ocr
-    from ... import verify as verify_mod
 
-    if not ocr.available():
+    texts = build.wall_texts()
+    if texts and not ocr.available():
         log("verify: install tesseract-ocr (make setup does) to have the walls' words read back")
-        return
-    for name, read in verify_mod.words_read(build.verify_dir, texts).items():
-        figures["walls"][name].update(read)
-    walls = {n: f for n, f in figures["walls"].items() if "words" in f}
-    log(f"verify: words read back by OCR (Tesseract) with the {figures['real_light']}: "
-        + ", ".join(f"{n} {f['led_words_read']}/{f['words']}" for n, f in walls.items())
-        + "; with a point light: " + ", ".join(f"{n} {f['point_words_read']}/{f['words']}" for n, f in walls.items()))
+        return {}
+    return texts
