@@ -22,6 +22,7 @@ import re
 import shutil
 import subprocess
 import tempfile
+import unicodedata
 from collections import Counter
 from pathlib import Path
 
@@ -42,8 +43,10 @@ def available() -> bool:
 
 
 def words(text: str) -> list[str]:
-    """``text``'s words, lower case, letters and digits only."""
-    return [w for w in re.sub(r"[^0-9a-z]+", " ", text.lower()).split() if w]
+    """``text``'s words, lower case, letters and digits only, accents dropped (Tesseract's
+    English model reads "café" as "cafe" as often as not)."""
+    plain = unicodedata.normalize("NFKD", text.lower()).encode("ascii", "ignore").decode()
+    return [w for w in re.sub(r"[^0-9a-z]+", " ", plain).split() if w]
 
 
 def read(image: np.ndarray) -> list[str]:

@@ -44,4 +44,5 @@ def test_a_different_phrase_does_not_read_as_this_one():
 
 def test_words_ignore_case_and_punctuation_and_count_repeats():
     assert ocr.words("Sweet, DREAMS!  little-one") == ["sweet", "dreams", "little", "one"]
+    assert ocr.words("Joyeux anniversaire, Léa — à bientôt") == ["joyeux", "anniversaire", "lea", "a", "bientot"]
     assert ocr.words_read(targets.text_image("one", *SHAPE), "one one") == 1

@@ -137,6 +137,9 @@ def test_exported_files_match_the_optimizer_and_come_with_finishing_advice(lamp)
     # which is nearly symmetric (test_floor_and_per_wall_targets projects an asymmetric image).
     assert figures["optimizer_match_limit"] == 0.98
     assert min(agree) == figures["optimizer_match_min"] > figures["optimizer_match_limit"]
+    for w in ("front", "left", "right"):      # two optimizer renders, their noise taken out of r
+        f = figures["walls"][w]
+        assert 0.5 < f["optimizer_render_reliability"] < 1.0 and f["optimizer_raw_pearson"] <= f["optimizer_pearson"]
     study = figures["tolerance"]
     assert study["amplitudes_mm"][0] == 0.0 and study["max_drop"][0] == 0.0
     assert study["profile_error_mm"] == 0.05                                           # sla_resin's

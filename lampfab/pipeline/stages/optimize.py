@@ -63,10 +63,15 @@ def optimize(build: Build) -> dict:
     bar.close()
     heights = state.heights
     build.save_heights(heights, radius_mm=d.lens.outer_radius_mm, height_mm=d.lens.height_mm)
-    # The optimizer's own picture of its result, with the light it designed for: verify
-    # compares the exported lens's picture with the same light with it.
-    artifacts.write_npz(build.optimizer_render_file, light=opt.design_light, **{
-        w.name: img for w, img in zip(build.walls, optimizer.render_all(heights, seed=opt.seed + 1))})
+    # The optimizer's own picture of its result, with the light it designed for, twice
+    # with other photons: verify compares the exported lens's picture with the same
+    # light with them, and the two together say how much of a mismatch is their noise.
+    from ...verify import SECOND_RENDER
+
+    renders = {}
+    for suffix, seed in (("", opt.seed + 1), (SECOND_RENDER, opt.seed + 2)):
+        renders.update({w.name + suffix: img for w, img in zip(build.walls, optimizer.render_all(heights, seed=seed))})
+    artifacts.write_npz(build.optimizer_render_file, light=opt.design_light, **renders)
     steps = np.asarray(state.log).reshape(-1, 5)
     artifacts.write_csv(build.loss_file, steps, ["step", "level", "view", "loss", "seconds"],
                         ["%d", "%d", "%d", "%.6g", "%.3f"])

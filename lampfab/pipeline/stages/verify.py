@@ -29,9 +29,10 @@ def verify(build: Build) -> dict:
     bar.begin("tolerance study")
     if build.optimizer_render_file.exists():
         agree = verify_mod.optimizer_agreement(build.verify_dir, build.optimizer_render_file, list(figures["walls"]))
-        for name, r in agree.items():
-            figures["walls"][name]["optimizer_pearson"] = r
-        figures["optimizer_match_min"] = min(agree.values())
+        for name, a in agree.items():
+            figures["walls"][name].update(optimizer_pearson=a["r"], optimizer_raw_pearson=a["raw_r"],
+                                          optimizer_render_reliability=a["reliability"])
+        figures["optimizer_match_min"] = min(a["r"] for a in agree.values())
         figures["optimizer_match_limit"] = OPTIMIZER_MATCH_R
     for name, f in figures["walls"].items():
         log(f"verify: {name}: with the {figures['real_light']} r {f['led_pearson']:.3f}, SSIM {f['led_ssim']:.3f}, "
