@@ -60,6 +60,11 @@ def text_layout(text: str, rows: int, cols: int) -> tuple[float, str]:
         raise LampfabError(f"TEXT has {len(text)} characters; at most {_MAX_TEXT} fit legibly on a wall")
     probe = 100
     font = ImageFont.truetype(str(FONT), probe)
+    missing = _missing_glyphs(text, font)
+    if missing:
+        raise LampfabError(f"TEXT has characters the bundled font (DejaVu Sans Bold) cannot draw: "
+                           f"{' '.join(missing)}; they would show as empty boxes. Give the words in "
+                           f"Latin, Greek or Cyrillic letters, or make a picture of them and use TARGET=")
     box_w, box_h = cols * (1 - 2 * TEXT_MARGIN), rows * (1 - 2 * TEXT_MARGIN)
     best = None
     for lines in _layouts(words_by_line):
@@ -70,6 +75,13 @@ def text_layout(text: str, rows: int, cols: int) -> tuple[float, str]:
         if best is None or scale > best[0]:
             best = (scale, layout)
     return probe * best[0], best[1]
+
+
+def _missing_glyphs(text: str, font) -> list[str]:
+    """The characters of ``text`` that ``font`` has no glyph for: FreeType draws each as
+    the font's .notdef box, the glyph of a code point no font has."""
+    notdef = bytes(font.getmask("\U0010FFFD"))
+    return sorted({ch for ch in text if not ch.isspace() and bytes(font.getmask(ch)) == notdef})
 
 
 def _layouts(words_by_line: list[list[str]]):

@@ -45,6 +45,9 @@ def test_text_keeps_given_lines_and_refuses_nothing_or_too_much():
     for bad in ("", "   \n ", "x" * 500):
         with pytest.raises(LampfabError, match="TEXT"):
             targets.text_image(bad, 60, 80)
+    with pytest.raises(LampfabError, match="cannot draw: 你 好"):
+        targets.text_image("Hello 你好", 60, 80)
+    assert targets.text_image("Joyeux anniversaire Léa 😀", 60, 80).max() > 0.5    # DejaVu has both
 
 
 # -- panorama -----------------------------------------------------------------------
