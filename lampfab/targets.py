@@ -28,36 +28,27 @@ FONT = Path(__file__).resolve().parent / "data" / "DejaVuSans-Bold.ttf"
 TEXT_MARGIN = 0.08   # blank border, as a share of the wall image on each side
 _SUPERSAMPLE = 4     # glyphs drawn 4x larger and box-averaged: anti-aliased edges
 _MAX_TEXT = 200      # characters; more would be unreadable on a wall at any size
-# The gap added between lines, as a share of the font's size: the LED blurs the walls'
-# pictures more up than across, and lines set at Pillow's default (4 px, a twentieth of
-# an em) run into each other.  Six four-word phrases blurred by the default LED's
-# measured blur, with photon noise, read back by Tesseract (bench/text_blur.py
-# --spacing): 37 of 52 words at 0.1 em, 48 at 0.2-0.25, 52 at 0.3, 50-51 at 0.35-0.4; at
-# 1.25 times that blur 35, 34, 45, 47, 44 and 43.  A four-word phrase's letters are up
-# to a sixth smaller for it.
-LINE_SPACING_EM = 0.3
 
 
-def text_image(text: str, rows: int, cols: int, line_spacing_em: float = LINE_SPACING_EM) -> np.ndarray:
+def text_image(text: str, rows: int, cols: int) -> np.ndarray:
     """``text`` set as large as fits into (rows, cols): (rows, cols) float64 in [0, 1].
 
     Newlines in ``text`` are kept; otherwise words are spread over 1..n lines,
-    whichever gives the largest letters, ``line_spacing_em`` of the font's size apart.
+    whichever gives the largest letters.
     """
     from PIL import Image, ImageDraw, ImageFont
 
-    em_px, layout = text_layout(text, rows, cols, line_spacing_em)
+    em_px, layout = text_layout(text, rows, cols)
     font = ImageFont.truetype(str(FONT), max(1, int(em_px * _SUPERSAMPLE)))
     big = Image.new("L", (cols * _SUPERSAMPLE, rows * _SUPERSAMPLE), 0)
     draw = ImageDraw.Draw(big)
     centre = (big.width / 2, big.height / 2)
-    draw.multiline_text(centre, layout, fill=255, font=font, anchor="mm", align="center",
-                        spacing=line_spacing_em * em_px * _SUPERSAMPLE)
+    draw.multiline_text(centre, layout, fill=255, font=font, anchor="mm", align="center")
     # Glyph coverage is the share of a pixel lit, so it is linear luminance as is.
     return np.asarray(big.reduce(_SUPERSAMPLE), np.float64) / 255.0
 
 
-def text_layout(text: str, rows: int, cols: int, line_spacing_em: float = LINE_SPACING_EM) -> tuple[float, str]:
+def text_layout(text: str, rows: int, cols: int) -> tuple[float, str]:
     """How ``text_image`` sets ``text`` in (rows, cols): (the font's size, its em, in
     pixels; the lines joined by newlines)."""
     from PIL import Image, ImageDraw, ImageFont
@@ -79,7 +70,7 @@ def text_layout(text: str, rows: int, cols: int, line_spacing_em: float = LINE_S
     for lines in _layouts(words_by_line):
         layout = "\n".join(lines)
         left, top, right, bottom = ImageDraw.Draw(Image.new("L", (1, 1))).multiline_textbbox(
-            (0, 0), layout, font=font, align="center", spacing=line_spacing_em * probe)
+            (0, 0), layout, font=font, align="center")
         scale = min(box_w / (right - left), box_h / (bottom - top))
         if best is None or scale > best[0]:
             best = (scale, layout)
