@@ -21,7 +21,7 @@ import dataclasses
 
 import numpy as np
 
-from .. import metrics, profile, room, sharpness
+from .. import metrics, ocr, profile, room, sharpness
 
 # The coarse design: nodes around and up, photons, fitting rounds, correction passes.
 # 64 x 17 nodes took 7 s on 2 cores and gave the apple's finished blur within 1 mm
@@ -82,6 +82,7 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
     """plan.json's sharpness figures from the LED's ``kernels`` on a design of this build."""
     px = build.design.optimize.sensor_px
     targets = build.targets(px)
+    texts = _readable_texts(build)
     walls, worst = {}, []
     for k, (wall, target) in enumerate(zip(build.walls, targets)):
         blur = kernels.blur_figures(k, wall)
@@ -93,6 +94,12 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
             **blur, "led_blur_px": {axis: mm / (wall.width_mm / px) for axis, mm in median.items()},
             "resolvable_across": wall.width_mm / median["horizontal"],
             "detail_ssim": metrics.ssim(blurred, target)}
+        if wall.name in texts:
+            # The sharp target's reading too: at 64 px Tesseract misses a word of some
+            # sharp phrases, which is the reader's limit, not the LED's.
+            walls[wall.name].update(words=len(ocr.words(texts[wall.name])),
+                                    target_words_read=ocr.words_read(target, texts[wall.name]),
+                                    perfect_words_read=ocr.words_read(blurred, texts[wall.name]))
         worst.append(max(median.values()))
     figures = {"design_px": px, "led": profile.as_dict(build.led), "walls": walls,
                "finest_detail_mm": float(np.median(worst)) if worst else None}
@@ -101,6 +108,11 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
     blur_px = max((max(w["led_blur_px"].values()) for w in walls.values()), default=None)
     figures["finer_design"] = bool(blur_px is not None and blur_px < FINER_DESIGN_BLUR_PX and px < FINER_DESIGN_PX)
     return figures
+
+
+def _readable_texts(build) -> dict[str, str]:
+    """The walls' phrases when Tesseract is there to read them ({} otherwise)."""
+    return build.wall_texts() if ocr.available() else {}
 
 
 def _halve(build, walls: dict) -> str:
@@ -130,7 +142,7 @@ def _warnings(build, walls: dict) -> list[str]:
     from .. import targets
 
     out = []
-    soft = [f"{name} {w['detail_ssim']:.2f}" for name, w in walls.items() if w["detail_ssim"] < DETAIL_SSIM]
+    soft = [f"{name} {w['detail_ssim']:.3f}" for name, w in walls.items() if w["detail_ssim"] < DETAIL_SSIM]
     if soft:
         out.append(f"the picture holds detail finer than this LED can show: blurred by it, it scores SSIM "
                    f"{', '.join(soft)} against itself (below {DETAIL_SSIM}); expect it soft, or choose a smaller LED")
@@ -149,9 +161,14 @@ def _warnings(build, walls: dict) -> list[str]:
         largest = min(TEXT_BLUR_EM * em / blur for _, blur, em in unreadable) * build.led.radius_mm
         fits = _largest_led(largest)
         led = f"LED={fits.name} ({fits.radius_mm:g} mm radius)" if fits else f"an LED of at most {largest:.2g} mm radius"
+        short = [f"{name} {w['perfect_words_read']}/{w['words']} (sharp {w['target_words_read']}/{w['words']})"
+                 for name, w in ((n, walls[n]) for n in names)
+                 if w.get("perfect_words_read", 0) < w.get("target_words_read", 0)]
+        evidence = (f"; even a perfect lens would show OCR only {', '.join(short)} words (the target blurred by "
+                    f"this LED)" if short else "")
         out.append(f"the text may not read whole with this LED on the {', '.join(names)} wall{'s' * (len(names) > 1)}: "
                    f"its blur ({min(blurs):.0f}-{max(blurs):.0f} mm) is over {TEXT_BLUR_EM:g} of the letters' size "
-                   f"({min(ems):.0f} mm); use fewer words, or {led}")
+                   f"({min(ems):.0f} mm){evidence}; use fewer words, or {led}")
     return out
 
 

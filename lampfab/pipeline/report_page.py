@@ -93,7 +93,7 @@ def verdict(build: Build, figures: dict, checks: list) -> tuple[str, str]:
     read = [w for w in walls.values() if "words" in w]
     if read:
         look += (f"; OCR reads {sum(w['led_words_read'] for w in read)} of its {sum(w['words'] for w in read)} "
-                 f"words on the walls")
+                 f"words on the walls ({sum(w['target_words_read'] for w in read)} in the sharp targets)")
     failed = [c.name for c in checks if c.failed]
     if failed:
         return f"{look}, but fails the {', '.join(failed)} check for {build.fab.name}: see below.", "bad"
@@ -112,7 +112,8 @@ def _facts(build: Build, figures: dict, plan: dict, checks: list) -> list[tuple[
     read = [w for w in walls if "words" in w]
     if read:
         out.append(("Words read back by OCR (LED)", ", ".join(f"{w['led_words_read']}/{w['words']}" for w in read)
-                    + " on the walls with words"))
+                    + " on the walls with words; in the sharp targets "
+                    + ", ".join(f"{w['target_words_read']}/{w['words']}" for w in read)))
     blur = [w["led_blur_mm"] for w in walls if "led_blur_mm" in w]
     if blur:
         px = build.design.verify.image_px

@@ -40,6 +40,9 @@ def test_detail_finer_than_the_blur_is_a_warning(text_build):
     build = text_build("Hi")
     soft = budget._warnings(build, _walls(60.0, 84.0, detail_ssim=0.6))
     assert len(soft) == 1 and "finer than this LED can show" in soft[0]
+    # Just under the limit it says so with a figure that is under it (not "0.85, below 0.85").
+    near = budget._warnings(build, _walls(60.0, 84.0, detail_ssim=budget.DETAIL_SSIM - 0.002))
+    assert f"{budget.DETAIL_SSIM - 0.002:.3f}" in near[0]
 
 
 def test_what_halves_the_blur_comes_with_its_figures(text_build):
@@ -53,3 +56,42 @@ def test_what_halves_the_blur_comes_with_its_figures(text_build):
 def test_a_filaments_blur_up_the_wall_halves_with_its_length(text_build):
     line = budget._halve(text_build("Hi", led="filament26"), _walls(44.0, 720.0))
     assert "a filament half as long (13 mm: 360 mm up the wall)" in line
+
+
+def _uniform_kernels(build, h_mm: float, v_mm: float):
+    """The LED's kernel the same (``h_mm`` x ``v_mm`` across x up, 4 sigma) everywhere on
+    every wall: a grid of cells over each wall's picture."""
+    import numpy as np
+
+    from lampfab import sharpness
+
+    centres, walls = [], []
+    for k, wall in enumerate(build.walls):
+        xs, ys = np.meshgrid(np.linspace(0, wall.width_mm, 9)[:-1] + wall.width_mm / 16,
+                             np.linspace(0, wall.height_mm, 7)[:-1] + wall.height_mm / 12)
+        centres.append(np.stack([xs.ravel(), ys.ravel()], 1))
+        walls.append(np.full(xs.size, k))
+    centre = np.concatenate(centres)
+    cov = np.tile([(h_mm / 4) ** 2, (v_mm / 4) ** 2, 0.0], (len(centre), 1))
+    return sharpness.Kernels(np.concatenate(walls), centre, cov, np.ones(len(centre)))
+
+
+@pytest.mark.parametrize("blur_mm, read_whole", [((68.0, 97.0), False), ((33.0, 45.0), True)],
+                         ids=["the default LED", "mini1616"])
+def test_plan_reads_a_perfect_lenss_text_through_the_leds_blur(text_build, blur_mm, read_whole):
+    from lampfab import ocr, targets
+
+    phrase = "Sleep tight my angel"  # its descenders run into the next line under the default LED
+    build = text_build(phrase)
+    build.save_targets({w.name: targets.text_image(phrase, 48, 64) for w in build.walls})  # at the design's 64 px
+    figures = budget.summarize(build, _uniform_kernels(build, *blur_mm))
+    assert ocr.available()
+    walls = figures["walls"].values()
+    assert all(w["words"] == w["target_words_read"] == 4 for w in walls)
+    read = [w["perfect_words_read"] for w in walls]
+    if read_whole:
+        assert read == [4, 4, 4] and not any("perfect lens" in w for w in figures["warnings"])
+    else:
+        assert max(read) < 4
+        assert any("even a perfect lens would show OCR only front" in w and "(sharp 4/4)" in w
+                   for w in figures["warnings"])

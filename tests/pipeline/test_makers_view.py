@@ -102,9 +102,15 @@ def test_text_lamp_end_to_end(text_lamp):
     # business) and says so on the verify line.
     walls = json.loads((out / "verify.json").read_text())["figures"]["walls"]
     for name, f in walls.items():
-        assert f["words"] == 2 and 0 <= f["led_words_read"] <= 2 and 0 <= f["point_words_read"] <= 2, name
+        assert f["words"] == 2 and all(0 <= f[k] <= 2 for k in ("led_words_read", "point_words_read",
+                                                                 "target_words_read")), name
     assert re.search(r"front r \S+ SSIM \S+ \d/2 words read", lines[-2]), lines[-2]
-    assert re.search(r"OCR reads \d of its 6 words on the walls", (out / "report.html").read_text())
+    assert re.search(r"OCR reads \d of its 6 words on the walls \(\d in the sharp targets\)",
+                     (out / "report.html").read_text())
+    # plan read them too: sharp, and blurred by its coarse design's LED kernels.
+    plan = json.loads((out / "plan.json").read_text())["figures"]["sharpness"]["walls"]
+    assert all(f["words"] == 2 and 0 <= f["perfect_words_read"] <= 2 and 0 <= f["target_words_read"] <= 2
+               for f in plan.values())
 
 
 @pytest.mark.slow

@@ -25,7 +25,8 @@ def verify(build: Build) -> dict:
     if read:
         log(f"verify: words read back by OCR (Tesseract) with the {figures['real_light']}: "
             + ", ".join(f"{n} {f['led_words_read']}/{f['words']}" for n, f in read.items())
-            + "; with a point light: " + ", ".join(f"{n} {f['point_words_read']}/{f['words']}" for n, f in read.items()))
+            + "; with a point light: " + ", ".join(f"{n} {f['point_words_read']}/{f['words']}" for n, f in read.items())
+            + "; the sharp target: " + ", ".join(f"{n} {f['target_words_read']}/{f['words']}" for n, f in read.items()))
     bar.begin("tolerance study")
     if build.optimizer_render_file.exists():
         agree = verify_mod.optimizer_agreement(build.verify_dir, build.optimizer_render_file, list(figures["walls"]))
