@@ -82,7 +82,7 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
     """plan.json's sharpness figures from the LED's ``kernels`` on a design of this build."""
     px = build.design.optimize.sensor_px
     targets = build.targets(px)
-    texts = _readable_texts(build)
+    texts = build.texts_to_read()
     walls, worst = {}, []
     for k, (wall, target) in enumerate(zip(build.walls, targets)):
         blur = kernels.blur_figures(k, wall)
@@ -108,11 +108,6 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
     blur_px = max((max(w["led_blur_px"].values()) for w in walls.values()), default=None)
     figures["finer_design"] = bool(blur_px is not None and blur_px < FINER_DESIGN_BLUR_PX and px < FINER_DESIGN_PX)
     return figures
-
-
-def _readable_texts(build) -> dict[str, str]:
-    """The walls' phrases when Tesseract is there to read them ({} otherwise)."""
-    return build.wall_texts() if ocr.available() else {}
 
 
 def _halve(build, walls: dict) -> str:

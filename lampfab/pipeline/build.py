@@ -247,6 +247,12 @@ class Build:
         return {w.name: str(figures[f"{w.name}_source"])[len(TEXT_SOURCE):] for w in self.walls
                 if str(figures.get(f"{w.name}_source", "")).startswith(TEXT_SOURCE)}
 
+    def texts_to_read(self) -> dict[str, str]:
+        """``wall_texts`` where Tesseract is installed to read them back ({} otherwise)."""
+        from .. import ocr
+
+        return self.wall_texts() if ocr.available() else {}
+
     def checks_report(self) -> dict | None:
         """The fabrication check's report, passed or failed (None before it ran)."""
         for path in (self.report_file("fabcheck"), self.failed_checks_file):

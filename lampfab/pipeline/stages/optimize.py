@@ -9,6 +9,7 @@ import numpy as np
 
 from ... import artifacts
 from ...errors import LampfabError
+from ...verify import SECOND_RENDER
 from ..build import Build
 from ..progress import log, steps_bar
 
@@ -66,8 +67,6 @@ def optimize(build: Build) -> dict:
     # The optimizer's own picture of its result, with the light it designed for, twice
     # with other photons: verify compares the exported lens's picture with the same
     # light with them, and the two together say how much of a mismatch is their noise.
-    from ...verify import SECOND_RENDER
-
     renders = {}
     for suffix, seed in (("", opt.seed + 1), (SECOND_RENDER, opt.seed + 2)):
         renders.update({w.name + suffix: img for w, img in zip(build.walls, optimizer.render_all(heights, seed=seed))})

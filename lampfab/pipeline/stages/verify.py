@@ -23,10 +23,10 @@ def verify(build: Build) -> dict:
                                 build.design.optimize.seed + 7, v.max_bounces, v.mitsuba_photons, texts)
     read = {n: f for n, f in figures["walls"].items() if "words" in f}
     if read:
-        log(f"verify: words read back by OCR (Tesseract) with the {figures['real_light']}: "
-            + ", ".join(f"{n} {f['led_words_read']}/{f['words']}" for n, f in read.items())
-            + "; with a point light: " + ", ".join(f"{n} {f['point_words_read']}/{f['words']}" for n, f in read.items())
-            + "; the sharp target: " + ", ".join(f"{n} {f['target_words_read']}/{f['words']}" for n, f in read.items()))
+        def counts(key):
+            return ", ".join(f"{n} {f[key]}/{f['words']}" for n, f in read.items())
+        log(f"verify: words read back by OCR (Tesseract) with the {figures['real_light']}: {counts('led_words_read')}"
+            f"; with a point light: {counts('point_words_read')}; the sharp target: {counts('target_words_read')}")
     bar.begin("tolerance study")
     if build.optimizer_render_file.exists():
         agree = verify_mod.optimizer_agreement(build.verify_dir, build.optimizer_render_file, list(figures["walls"]))
@@ -60,10 +60,7 @@ def verify(build: Build) -> dict:
 
 def _ocr_texts(build: Build) -> dict[str, str]:
     """The walls' phrases for verify to read back ({} without words or without Tesseract)."""
-    from ... import ocr
-
-    texts = build.wall_texts()
-    if texts and not ocr.available():
+    texts = build.texts_to_read()
+    if not texts and build.wall_texts():
         log("verify: install tesseract-ocr (make setup does) to have the walls' words read back")
-        return {}
     return texts
