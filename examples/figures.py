@@ -69,6 +69,28 @@ def figure(name: str, builds: Path = ROOT / "build") -> Path:
     return out
 
 
+def before_after(pairs: list[tuple[str, str]], builds: Path = ROOT / "build", wall: str = "front") -> Path:
+    """examples/results/led_design.png: per (point-light design, LED-aware design) pair of
+    build names, ``wall``'s target and what the LED draws through each lens (both seen
+    with the LED)."""
+
+    def seen(name: str, design: str) -> Image.Image:
+        f = json.loads((builds / name / "verify.json").read_text())["figures"]["walls"][wall]
+        words = f", {f['led_words_read']}/{f['words']} words" if "words" in f else ""
+        return tile(builds / name / "verify" / f"{wall}_led.png", f"{design} design: SSIM {f['led_ssim']:.2f}{words}")
+
+    rows = [[tile(builds / after / "targets" / f"{wall}_preview.png", f"target ({wall})"),
+             seen(before, "point"), seen(after, "LED")] for before, after in pairs]
+    height = max(t.height for row in rows for t in row) + 4
+    sheet = Image.new("L", (3 * (TILE + 4), height * len(rows)), 0)
+    for y, row in enumerate(rows):
+        for i, t in enumerate(row):
+            sheet.paste(t, (i * (TILE + 4), y * height))
+    out = RESULTS / "led_design.png"
+    sheet.save(out)
+    return out
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("names", nargs="+", help="build names, e.g. apple for build/apple")

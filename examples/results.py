@@ -4,12 +4,16 @@ from the current code, in one run.
 
     .venv/bin/python examples/results.py             # every case: about an hour on 2 cores
     .venv/bin/python examples/results.py apple text  # only these cases
+    .venv/bin/python examples/results.py --verify-only  # verify again on every build there is
 
 Each case is one fresh `make lamp` into build/results/<name> (its wall time measured
 around make), then examples/figures.py's pictures, then the tables between the
 `<!-- results:NAME -->` and `<!-- /results:NAME -->` markers of README.md,
 docs/results.md, docs/fabrication.md and bench/RESULTS.md, rewritten from every case's
-reports (a case not run this time keeps the figures its last build left).  scikit-image's samples are written to build/results/inputs.
+reports (a case not run this time keeps the figures its last build left).  scikit-image's
+samples are written to build/results/inputs.  The ``*_point_design`` cases design the
+same lamps for the ideal point light (a copy of the default profile), for the
+before-and-after picture examples/results/led_design.png and its table.
 """
 
 from __future__ import annotations
@@ -38,7 +42,8 @@ class Case:
     kind: str
     make: tuple[str, ...]       # make's variables
     sample: str = ""            # a scikit-image sample the case reads from INPUTS
-    tables: tuple[str, ...] = ("summary", "full", "times")  # the tables it is a row of
+    tables: tuple[str, ...] = ("summary", "full", "times", "reflections")  # the tables it is a row of
+    before: str = ""            # the case this one is the point-light design of (LED-aware design's "before")
 
 
 CASES = (
@@ -64,24 +69,53 @@ CASES = (
                                                                          "FAB=acrylic_cnc4"), tables=("milled", "times")),
     Case("apple_cnc3", "the apple milled on 3 axes (FAB=acrylic_cnc3)", ("TARGET=examples/apple.png",
                                                                          "FAB=acrylic_cnc3"), tables=("milled", "times")),
+    # The same lamps designed for the ideal point light, as before the design knew the LED.
+    Case("apple_point_design", "", ("TARGET=examples/apple.png",), tables=("led_design",), before="apple"),
+    Case("text_point_design", "", ("TEXT=Sweet dreams little one",), tables=("led_design",), before="text"),
+    Case("camera_point_design", "", (f"TARGET={INPUTS / 'camera.png'}",), "camera", tables=("led_design",),
+         before="camera"),
 )
 
+# The default profile designing for the ideal point light: a profile copy with one line changed.
+POINT_DESIGN_PROFILE = INPUTS / "point_design.toml"
 
-def run(case: Case) -> float:
-    """A fresh make lamp of ``case``; its wall time in seconds."""
+
+def _point_design_profile() -> Path:
+    text = (ROOT / "profiles" / "default.toml").read_text()
+    edited = re.sub(r'^design_light = "led"', 'design_light = "point"', text, count=1, flags=re.M)
+    if edited == text:
+        sys.exit("profiles/default.toml has no line 'design_light = \"led\"' to change")
+    INPUTS.mkdir(parents=True, exist_ok=True)
+    POINT_DESIGN_PROFILE.write_text(edited)
+    return POINT_DESIGN_PROFILE
+
+
+def run(case: Case, verify_only: bool = False) -> float:
+    """A fresh make lamp of ``case`` (or, ``verify_only``, its verify stage again on the
+    build there is); its wall time in seconds, kept for the tables only for a fresh one."""
     if case.sample:
         from skimage import data, io
 
         INPUTS.mkdir(parents=True, exist_ok=True)
         io.imsave(INPUTS / f"{case.sample}.png", getattr(data, case.sample)(), check_contrast=False)
-    shutil.rmtree(BUILDS / case.name, ignore_errors=True)
+    profile = (f"PROFILE={_point_design_profile()}",) if case.before else ()
+    if verify_only:
+        # The stage itself, not make: make would redo the whole build when the resolved
+        # profiles changed since it was made.
+        given = dict(v.split("=", 1) for v in (*case.make, *profile))
+        command = [sys.executable, "stages/70_verify.py", "--out", str(BUILDS / case.name),
+                   "--profile", given.get("PROFILE", "default"), "--fab", given.get("FAB", "sla_resin"),
+                   "--led", given.get("LED", "star3535")]
+    else:
+        shutil.rmtree(BUILDS / case.name, ignore_errors=True)
+        command = ["make", "--no-print-directory", "lamp", f"BUILD={BUILDS}", f"NAME={case.name}", *case.make, *profile]
     t0 = time.monotonic()
-    done = subprocess.run(["make", "--no-print-directory", "lamp", f"BUILD={BUILDS}", f"NAME={case.name}",
-                           *case.make], cwd=ROOT, capture_output=True, text=True)
+    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
     seconds = time.monotonic() - t0
     if done.returncode:
-        sys.exit(f"make lamp for {case.name} failed:\n{done.stdout[-3000:]}{done.stderr[-3000:]}")
-    (BUILDS / case.name / "make_seconds.txt").write_text(f"{seconds:.1f}\n")
+        sys.exit(f"{command[1]} for {case.name} failed:\n{done.stdout[-3000:]}{done.stderr[-3000:]}")
+    if not verify_only:
+        (BUILDS / case.name / "make_seconds.txt").write_text(f"{seconds:.1f}\n")
     return seconds
 
 
@@ -118,6 +152,17 @@ def _row(case: Case, table: str) -> str | None:
         return (f"| {case.name} | " + " | ".join("—" if t is None else f"{t:.1f}" for t in seconds)
                 + f" | {r['stage_seconds']:.0f} | {(r['make_seconds'] or 0) / 60:.1f} min |")
     walls = list(r["verify"]["figures"]["walls"].values())
+    if table == "led_design":
+        return _before_after_row(case, walls)
+    if table == "reflections":
+        if not all("led_ssim_ceiling" in w for w in walls):
+            return None
+        return (f"| {case.name} | {_span([w['led_ssim'] for w in walls], 2)} | "
+                f"{_span([w['led_ssim_ceiling'] for w in walls], 2)} | "
+                f"{_span([w['led_ssim'] / w['led_ssim_ceiling'] for w in walls], 2)} | "
+                f"{_span([w['led_reference_ssim'] for w in walls], 2)} | "
+                f"{_span([max(w.get('led_ssim_photon_noise', 0.0), 0.0) for w in walls], 3)} | "  # -0.0003: none
+                f"{_span([100 * w['ghost_share'] for w in walls], 1)} % |")
     failed = [c["name"] for c in r["fabcheck"]["figures"]["checks"] if c["applies"] and not c["passed"]]
     checks = "pass" if not failed else "fails " + ", ".join(failed)
     minutes = f"{(r['make_seconds'] or r['stage_seconds']) / 60:.1f} min"
@@ -141,6 +186,24 @@ def _row(case: Case, table: str) -> str | None:
             f"{r['stage_seconds']:.0f} s / {minutes} |")
 
 
+def _before_after_row(case: Case, before: list[dict]) -> str | None:
+    """A row of the led_design table: ``case`` (the point-light design) against the
+    LED-aware design it is the "before" of."""
+    r = _reports(case.before)
+    if "verify" not in r:
+        return None
+    after = list(r["verify"]["figures"]["walls"].values())
+
+    def figures(walls, prefix):
+        return f"{_span([w[prefix + 'pearson'] for w in walls])} / {_span([w[prefix + 'ssim'] for w in walls], 2)}"
+
+    def read(walls):
+        return ", ".join(f"{w['led_words_read']}/{w['words']}" for w in walls if "words" in w) or "—"
+
+    return (f"| {case.before} | {figures(before, 'led_')} | {figures(after, 'led_')} | {read(before)} | "
+            f"{read(after)} | {figures(before, '')} | {figures(after, '')} |")
+
+
 _SHORT = ("| {first} | what it is | with the LED: r / SSIM | ideal point light: r / SSIM | LED blur (across x up) "
           "| checks | `make lamp` |\n|---|---|---|---|---|---|---|")
 TABLES = {
@@ -150,6 +213,13 @@ TABLES = {
     "full": ("| case | with the LED: r / SSIM | point light: r / SSIM | SSIM of the target blurred by the LED "
              "| ... with the lens's reflections | LED blur | Mitsuba vs verify (r) | light on the walls "
              "| contrast on black (LED) | checks | by stage / `make lamp` |\n|---|---|---|---|---|---|---|---|---|---|---|"),
+    "reflections": ("| case | SSIM with the LED | a perfect outer surface, with this lens's reflections and verify's "
+                    "photon noise | the first over the second | a perfect point-light design, no reflections, no noise "
+                    "| SSIM that verify's photon noise takes off | light reflected inside the lens |\n"
+                    "|---|---|---|---|---|---|---|"),
+    "led_design": ("| image | with the LED, lens designed for a point: r / SSIM | ... designed for the LED | OCR with the LED, "
+                   "designed for a point | ... for the LED | ideal point light, designed for a point | ... for the LED |\n"
+                   "|---|---|---|---|---|---|---|"),
 }
 
 
@@ -172,6 +242,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("names", nargs="*", help=f"cases to run (default: all of {', '.join(c.name for c in CASES)})")
     parser.add_argument("--tables-only", action="store_true", help="rewrite the tables from the builds there are")
+    parser.add_argument("--verify-only", action="store_true",
+                        help="run only verify again on the builds there are (after a change to verify alone); "
+                             "the tables keep each build's make time")
     args = parser.parse_args()
     unknown = set(args.names) - {c.name for c in CASES}
     if unknown:
@@ -180,8 +253,15 @@ def main() -> None:
         for case in CASES:
             if args.names and case.name not in args.names:
                 continue
-            seconds = run(case)
-            print(f"{case.name}: make lamp {seconds / 60:.1f} min -> {figures.figure(case.name, BUILDS)}", flush=True)
+            seconds = run(case, args.verify_only)
+            # A point-light design is pictured only beside its LED design, below.
+            made = "" if case.before else f" -> {figures.figure(case.name, BUILDS)}"
+            print(f"{case.name}: {'verify' if args.verify_only else 'make lamp'} {seconds / 60:.1f} min{made}",
+                  flush=True)
+    pairs = [(c.name, c.before) for c in CASES if c.before and all((BUILDS / n / "verify.json").exists()
+                                                                    for n in (c.name, c.before))]
+    if pairs:
+        print(f"before and after: {figures.before_after(pairs, BUILDS)}")
     write_tables()
 
 

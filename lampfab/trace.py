@@ -13,6 +13,8 @@ The mesh must be a closed, consistently oriented solid (outward normals): the si
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import tolerances
@@ -302,6 +304,17 @@ def wall_landings(mi, walls: list[Wall], o, d, margin: float = 0.5) -> tuple[np.
     return index.numpy().astype(np.int64), np.stack([x.numpy(), y.numpy()], 1).astype(np.float64)
 
 
+def _noise_sample(counts_by_parity: np.ndarray, traced_by_parity: list[int]) -> np.ndarray:
+    """(pixels,) float64, in photons like the pooled counts: the halves' difference
+    a - b (a, b = a half's counts over its photons, variances s/na and s/nb) times
+    sqrt(na nb), whose variance s (na + nb) is the pooled counts'; zeros if a half is
+    empty."""
+    na, nb = traced_by_parity
+    if not (na and nb):
+        return np.zeros(counts_by_parity.shape[1])
+    return math.sqrt(na * nb) * (counts_by_parity[0] / na - counts_by_parity[1] / nb)
+
+
 def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float, ior: float,
                  walls: list[Wall], shapes: list[tuple[int, int]], photons: int, seed: int,
                  max_bounces: int = 8, emitter=None, reflection_place=None, light_length_mm: float = 0.0,
@@ -321,6 +334,11 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     once (Fresnel ghosts: the refinement traces only the cavity's, see ``into_glass``).
     With ``reflection_place`` (see ``propagate``) the info also holds
     "ghosts_by_place": {code: per-wall images of the ghosts first reflected there}.
+    ``direct_noise`` is a sample of the photon noise in the images' direct (never
+    reflected) light: per wall, zero-mean, with the images' noise variance per pixel (the
+    difference of the even and the odd batches' direct light, scaled to the whole count;
+    zeros when one batch traced everything).  Added to a noise-free image, it makes that
+    image as noisy as these renders, to score both alike.
     The per-pixel sums run in numpy in a fixed order, so a seed gives the same images
     every time.
     """
@@ -330,6 +348,8 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     sizes = [r * c for r, c in shapes]
     counts = np.zeros(sum(sizes), np.int64)
     ghost_counts: dict[int, np.ndarray] = {}
+    direct_by_parity = np.zeros((2, sum(sizes)), np.int64)
+    traced_by_parity = [0, 0]
     trapped = 0
     traced = 0
     batches = -(-photons // BATCH)
@@ -347,11 +367,13 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
                 keep = (wall >= 0) & (place == 0)
                 kernel_moments.add(to_numpy(o_out)[keep], wall[keep], xy[keep])
             counts[:] += np.bincount(pixel[pixel >= 0], minlength=len(counts))
+            direct_by_parity[batch % 2] += np.bincount(pixel[(pixel >= 0) & (place == 0)], minlength=len(counts))
             for code in np.unique(place[(pixel >= 0) & (place > 0)]):
                 ghost_counts.setdefault(int(code), np.zeros(len(counts), np.int64))
                 ghost_counts[code] += np.bincount(pixel[(pixel >= 0) & (place == code)], minlength=len(counts))
 
         traced += dr.width(d)
+        traced_by_parity[batch % 2] += dr.width(d)
         trapped += propagate(mi, scene.scene, o, d, ior, batch_seed, max_bounces, land, reflection_place)
 
     def per_wall(c):
@@ -360,7 +382,8 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     images = per_wall(counts)
     shares = [float(img.sum()) for img in images]
     info = {"shares": shares, "lost": 1.0 - sum(shares) - trapped / traced, "trapped": trapped / traced,
-            "ghosts": per_wall(sum(ghost_counts.values(), np.zeros(len(counts), np.int64))), "photons": traced}
+            "ghosts": per_wall(sum(ghost_counts.values(), np.zeros(len(counts), np.int64))), "photons": traced,
+            "direct_noise": per_wall(_noise_sample(direct_by_parity, traced_by_parity))}
     if reflection_place:
         info["ghosts_by_place"] = {code: per_wall(c) for code, c in sorted(ghost_counts.items())}
     return images, info

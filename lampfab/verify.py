@@ -100,15 +100,19 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
     ``ghost_share`` is the part of the wall's light that was reflected inside the lens
     (Fresnel ghosts), ``direct_ssim`` the SSIM of the rest (the light the outer surface
     steers: the design's own contrast), and ``ssim_ceiling`` the SSIM of the target
-    itself with these ghosts added: what an outer surface that put its light exactly on
-    the target would score, unless it also changed the ghosts.
+    itself with these ghosts and the render's own photon noise added (``trace``'s
+    ``direct_noise``): what verify would score for an outer surface that put its light
+    exactly on the target, unless it also changed the ghosts.
 
     For an LED (not a panel's beam) each wall also gets the LED's blur measured on this
     lens (``sharpness``): ``led_blur_mm`` (median diameters across and up, and their
     10-90 % range), ``led_reference_pearson`` / ``led_reference_ssim`` (the target
     blurred by these kernels: what a perfect point-light design would show with this
     LED), ``led_ssim_ceiling`` (that, with the lens's own reflections of the LED's
-    light added, as ``ssim_ceiling``) and ``led_kernel_pearson`` (the point-light render
+    light and the LED render's photon noise added, as ``ssim_ceiling``: the figure to
+    hold ``led_ssim`` against), ``led_ssim_photon_noise`` (what that noise takes off:
+    a lamp, free of it, would score about that much more than ``led_ssim``) and
+    ``led_kernel_pearson`` (the point-light render
     blurred by the kernels against the LED render: how well the kernels describe the
     blur).  With ``mitsuba_photons`` Mitsuba's light tracer renders the lens too
     (``mitsuba_reference``): ``mitsuba_pearson`` (LED) and ``mitsuba_point_pearson``.
@@ -142,7 +146,8 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
         f = figures["walls"][wall.name] = {
             "pearson": sharp["pearson"], "ssim": sharp["ssim"], "share": info["shares"][k],
             "ghost_share": float(ghosts.sum() / max(point[k].sum(), 1e-300)),
-            "direct_ssim": metrics.ssim(direct, target), "ssim_ceiling": metrics.ssim(exact + ghosts, target),
+            "direct_ssim": metrics.ssim(direct, target),
+            "ssim_ceiling": metrics.ssim(_noisy(exact + ghosts, info["direct_noise"][k]), target),
             "led_pearson": blur["pearson"], "led_ssim": blur["ssim"], "led_share": led_info["shares"][k]}
         for prefix, render in (("", point[k]), ("led_", led[k])):
             dark = metrics.contrast(render, target)
@@ -152,7 +157,8 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
             f.update(_words_read(texts[wall.name], target, point[k], led[k]))
         arrays = {"point": point[k], "led": led[k], "ghosts": ghosts}
         if kernels is not None and len(kernels.on(k, wall)):
-            f.update(_led_reference(kernels, k, wall, target, point[k], led[k], led_info["ghosts"][k], arrays))
+            f.update(_led_reference(kernels, k, wall, target, point[k], led[k], led_info["ghosts"][k],
+                                    led_info["direct_noise"][k], arrays))
         point_png, led_png, npz = wall_files(out_dir, wall.name)
         if mitsuba is not None:
             f["mitsuba_pearson"] = metrics.pearson(mitsuba["led"][k], led[k])
@@ -168,7 +174,7 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
 
 
 def _led_reference(kernels, k: int, wall: room.Wall, target: np.ndarray, point: np.ndarray, led: np.ndarray,
-                   led_ghosts: np.ndarray, arrays: dict) -> dict:
+                   led_ghosts: np.ndarray, led_noise: np.ndarray, arrays: dict) -> dict:
     """verify.json's LED blur figures of wall ``k`` (see ``verify``); adds the reference
     image to ``arrays``."""
     from . import sharpness
@@ -177,11 +183,19 @@ def _led_reference(kernels, k: int, wall: room.Wall, target: np.ndarray, point: 
     reference = sharpness.blur(target, field, wall)
     exact = reference / max(float(reference.sum()), 1e-300) * float((led - led_ghosts).sum())
     arrays["led_reference"] = reference
+    ceiling = metrics.ssim(_noisy(exact + led_ghosts, led_noise), target)
     return {**kernels.blur_figures(k, wall),
             "led_reference_pearson": metrics.pearson(reference, target),
             "led_reference_ssim": metrics.ssim(reference, target),
-            "led_ssim_ceiling": metrics.ssim(exact + led_ghosts, target),
+            "led_ssim_ceiling": ceiling,
+            "led_ssim_photon_noise": metrics.ssim(exact + led_ghosts, target) - ceiling,
             "led_kernel_pearson": metrics.pearson(sharpness.blur(point, field, wall), led)}
+
+
+def _noisy(image: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """``image`` with a render's photon noise sample added, kept non-negative like any
+    render."""
+    return np.maximum(image + noise, 0.0)
 
 
 def _height_range(loaded: Loaded) -> tuple[float, float]:

@@ -19,7 +19,8 @@ def _fake_build(folder, led_r):
     folder.mkdir(parents=True)
     wall = {"led_pearson": led_r, "led_ssim": 0.61, "pearson": 0.96, "ssim": 0.45, "led_share": 0.186,
             "led_blur_mm": {"horizontal": 59.4, "vertical": 81.2}, "led_reference_ssim": 0.945,
-            "led_ssim_ceiling": 0.68, "mitsuba_pearson": 0.9952}
+            "led_ssim_ceiling": 0.68, "led_ssim_photon_noise": 0.021, "ghost_share": 0.079,
+            "mitsuba_pearson": 0.9952}
     reports = {"verify": {"walls": {"front": wall, "left": {**wall, "led_ssim": 0.64}}},
                "checks": {"checks": [{"name": "min_wall", "applies": True, "passed": True}]},
                "plan": {}, "export": {}, "prepare": {}, "init": {}, "optimize": {}, "solid": {}}
@@ -34,13 +35,31 @@ def test_the_tables_are_rewritten_between_their_markers_and_nowhere_else(tmp_pat
     _fake_build(tmp_path / "builds" / "apple", 0.9912)
     page = tmp_path / "page.md"
     page.write_text("before\n<!-- results:summary -->\nold row\n<!-- /results:summary -->\nafter\n"
-                    "<!-- results:times -->\n<!-- /results:times -->\n")
+                    "<!-- results:times -->\n<!-- /results:times -->\n"
+                    "<!-- results:reflections -->\n<!-- /results:reflections -->\n")
     results.write_tables([page])
     text = page.read_text()
-    assert text.startswith("before\n<!-- results:summary -->\n| image |") and text.endswith("<!-- /results:times -->\n")
+    assert text.startswith("before\n<!-- results:summary -->\n| image |")
+    assert text.endswith("<!-- /results:reflections -->\n")
     assert "old row" not in text and "after" in text
     row = next(line for line in text.splitlines() if line.startswith("| apple |"))
     assert "| 0.991 / 0.61-0.64 | 0.960 / 0.45 | 59 x 81 mm | pass | 4.5 min |" in row
     assert "| apple | 10.0 | 10.0 |" in text and "| 80 | 4.5 min |" in text  # 8 stages of 10 s
+    # SSIM over its ceiling: 0.61 / 0.68 and 0.64 / 0.68.
+    assert "| apple | 0.61-0.64 | 0.68 | 0.90-0.94 | 0.94 | 0.021 | 7.9 % |" in text
     results.write_tables([page])  # a second run finds its own output between the markers
     assert page.read_text() == text
+
+
+def test_the_led_design_table_sets_each_point_light_design_beside_its_led_design(tmp_path, monkeypatch):
+    results = _load()
+    monkeypatch.setattr(results, "BUILDS", tmp_path / "builds")
+    _fake_build(tmp_path / "builds" / "apple", 0.9912)
+    _fake_build(tmp_path / "builds" / "apple_point_design", 0.9701)
+    page = tmp_path / "page.md"
+    page.write_text("<!-- results:led_design -->\n<!-- /results:led_design -->\n")
+    results.write_tables([page])
+    rows = [line for line in page.read_text().splitlines() if line.startswith("| apple")]
+    # Only the pairs whose both builds exist: text and camera have none here.
+    assert rows == ["| apple | 0.970 / 0.61-0.64 | 0.991 / 0.61-0.64 | — | — | 0.960 / 0.45 | 0.960 / 0.45 "
+                    "|"]

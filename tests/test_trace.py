@@ -165,3 +165,24 @@ def test_light_reflected_by_the_cavity_enters_the_glass_across_it(mi, inner_laye
     assert np.allclose(w[far], 4 * r * (1 - r), atol=1e-4)
     _, _, matched = trace.into_glass(mi, cavity.scene, o, d, 1.0 + 1e-6, 4)
     assert np.allclose(matched.numpy(), np.r_[np.ones(n), np.zeros(n // 4)], atol=1e-6)
+
+
+def test_direct_noise_sample_is_as_noisy_as_the_render(plain_room, monkeypatch):
+    scene, light, walls, shapes = plain_room
+    monkeypatch.setattr(trace, "BATCH", 50_000)  # four batches: two halves to compare
+
+    def render(seed):
+        images, info = trace.render_walls(scene, light, 1.5, 1.49, walls, shapes, 200_000, seed=seed)
+        return np.concatenate([(i - g).ravel() for i, g in zip(images, info["ghosts"])]), info
+
+    a, info = render(3)
+    b, _ = render(4)
+    noise = np.concatenate([n.ravel() for n in info["direct_noise"]])
+    lit = (a + b) > 0
+    # Two renders' difference over sqrt(2) has one render's noise: the sample must match
+    # its spread (thousands of pixels: a few per cent) and average out to nothing.
+    assert np.std(noise[lit]) == pytest.approx(np.std((a - b)[lit]) / np.sqrt(2), rel=0.15)
+    assert abs(noise.sum()) < 0.05 * np.abs(noise).sum()
+    monkeypatch.setattr(trace, "BATCH", 1_000_000)  # one batch: no halves, no sample
+    _, whole = trace.render_walls(scene, light, 1.5, 1.49, walls, shapes, 200_000, seed=3)
+    assert all(not n.any() for n in whole["direct_noise"])

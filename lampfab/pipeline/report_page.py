@@ -186,8 +186,10 @@ def _groups(build: Build, figures: dict, plan: dict) -> dict:
                   ("Blur up the wall (median)", span([w["led_blur_mm"]["vertical"] for w in walls], _mm)),
                   ("SSIM of the target blurred by it (a perfect design, no reflections)",
                    span([w["led_reference_ssim"] for w in walls])),
-                  ("... with this lens's reflections (a perfect outer surface)",
+                  ("... with this lens's reflections and verify's photon noise (a perfect outer surface)",
                    span([w["led_ssim_ceiling"] for w in walls])),
+                  ("SSIM that verify's photon noise takes off (a lamp has none)",
+                   span([w["led_ssim_photon_noise"] for w in walls])),
                   ("Blur model against the LED render (r)", span([w["led_kernel_pearson"] for w in walls]))]
     agree = []
     if any("optimizer_pearson" in w for w in walls):
