@@ -161,7 +161,7 @@ def _row(case: Case, table: str) -> str | None:
                 f"{_span([w['led_ssim_ceiling'] for w in walls], 2)} | "
                 f"{_span([w['led_ssim'] / w['led_ssim_ceiling'] for w in walls], 2)} | "
                 f"{_span([w['led_reference_ssim'] for w in walls], 2)} | "
-                f"{_span([max(w.get('led_ssim_photon_noise', 0.0), 0.0) for w in walls], 3)} | "  # -0.0003: none
+                f"{_span([max(w.get('led_ssim_photon_noise', 0.0), 0.0) for w in walls], 3)} | "  # a few 1e-4 under 0: no noise
                 f"{_span([100 * w['ghost_share'] for w in walls], 1)} % |")
     failed = [c["name"] for c in r["fabcheck"]["figures"]["checks"] if c["applies"] and not c["passed"]]
     checks = "pass" if not failed else "fails " + ", ".join(failed)
