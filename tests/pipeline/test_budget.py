@@ -76,12 +76,14 @@ def _uniform_kernels(build, h_mm: float, v_mm: float):
     return sharpness.Kernels(np.concatenate(walls), centre, cov, np.ones(len(centre)))
 
 
-@pytest.mark.parametrize("blur_mm, read_whole", [((68.0, 97.0), False), ((33.0, 45.0), True)],
-                         ids=["the default LED", "mini1616"])
-def test_plan_reads_a_perfect_lenss_text_through_the_leds_blur(text_build, blur_mm, read_whole):
+@pytest.mark.parametrize("phrase, blur_mm, read_whole, warns", [
+    ("Sleep tight my angel", (68.0, 97.0), False, True),  # its descenders run into the next line
+    ("Sleep tight my angel", (33.0, 45.0), True, False),
+    ("Good night sweet pea", (68.0, 97.0), True, True)],
+    ids=["the default LED", "mini1616", "the default LED, another phrase"])
+def test_plan_reads_a_perfect_lenss_text_through_the_leds_blur(text_build, phrase, blur_mm, read_whole, warns):
     from lampfab import ocr, targets
 
-    phrase = "Sleep tight my angel"  # its descenders run into the next line under the default LED
     build = text_build(phrase)
     build.save_targets({w.name: targets.text_image(phrase, 48, 64) for w in build.walls})  # at the design's 64 px
     figures = budget.summarize(build, _uniform_kernels(build, *blur_mm))
@@ -91,6 +93,9 @@ def test_plan_reads_a_perfect_lenss_text_through_the_leds_blur(text_build, blur_
     read = [w["perfect_words_read"] for w in walls]
     if read_whole:
         assert read == [4, 4, 4] and not any("perfect lens" in w for w in figures["warnings"])
+        # Past the blur at which text reads surely, the warning says that these words still read.
+        warned = [w for w in figures["warnings"] if "may not read" in w]
+        assert len(warned) == warns and all("still reads whole" in w for w in warned)
     else:
         assert max(read) < 4
         assert any("even a perfect lens would show OCR only front" in w and "(sharp 4/4)" in w
