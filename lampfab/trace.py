@@ -337,7 +337,7 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     ``direct_noise`` is a sample of the photon noise in the images' direct (never
     reflected) light: per wall, zero-mean, with the images' noise variance per pixel (the
     difference of the even and the odd batches' direct light, scaled to the whole count;
-    zeros when one batch traced everything).  Added to a noise-free image, it makes that
+    every render traces two batches at least).  Added to a noise-free image, it makes that
     image as noisy as these renders, to score both alike.
     The per-pixel sums run in numpy in a fixed order, so a seed gives the same images
     every time.
@@ -352,7 +352,7 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     traced_by_parity = [0, 0]
     trapped = 0
     traced = 0
-    batches = -(-photons // BATCH)
+    batches = max(-(-photons // BATCH), min(photons, 2))  # two at least: the halves of ``direct_noise``
     for batch in range(batches):
         batch_seed = seed * 1_000_003 + batch
         n = photons // batches + (batch < photons % batches)

@@ -86,9 +86,9 @@ def test_ghosts_are_the_reflected_part_of_the_light(plain_room):
         assert np.all(ghost <= img)
         # Two interfaces near normal incidence reflect ((n-1)/(n+1))^2 = 3.9 % each.
         assert 0.03 < ghost.sum() / img.sum() < 0.15
-    # Glass that matches the air reflects nothing.
-    _, matched = trace.render_walls(scene, light, 0.0, 1.0 + 1e-6, walls, shapes, 200_000, seed=3)
-    assert all(ghost.sum() == 0 for ghost in matched["ghosts"])
+    # Glass that matches the air reflects only at grazing incidence: a photon or two of 200,000.
+    matched_images, matched = trace.render_walls(scene, light, 0.0, 1.0 + 1e-6, walls, shapes, 200_000, seed=3)
+    assert all(ghost.sum() < 1e-3 * img.sum() for img, ghost in zip(matched_images, matched["ghosts"]))
 
 
 def test_ghosts_split_by_where_they_were_first_reflected(plain_room):
@@ -183,6 +183,8 @@ def test_direct_noise_sample_is_as_noisy_as_the_render(plain_room, monkeypatch):
     # its spread (thousands of pixels: a few per cent) and average out to nothing.
     assert np.std(noise[lit]) == pytest.approx(np.std((a - b)[lit]) / np.sqrt(2), rel=0.15)
     assert abs(noise.sum()) < 0.05 * np.abs(noise).sum()
-    monkeypatch.setattr(trace, "BATCH", 1_000_000)  # one batch: no halves, no sample
+    # Photons that fit one batch are traced as two, so that there are halves to compare.
+    monkeypatch.setattr(trace, "BATCH", 1_000_000)
     _, whole = trace.render_walls(scene, light, 1.5, 1.49, walls, shapes, 200_000, seed=3)
-    assert all(not n.any() for n in whole["direct_noise"])
+    spread = np.std(np.concatenate([n.ravel() for n in whole["direct_noise"]])[lit])
+    assert spread == pytest.approx(np.std((a - b)[lit]) / np.sqrt(2), rel=0.15)
