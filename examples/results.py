@@ -104,8 +104,7 @@ def run(case: Case, verify_only: bool = False) -> float:
         # profiles changed since it was made.
         given = dict(v.split("=", 1) for v in (*case.make, *profile))
         command = [sys.executable, "stages/70_verify.py", "--out", str(BUILDS / case.name),
-                   "--profile", given.get("PROFILE", "default"), "--fab", given.get("FAB", "sla_resin"),
-                   "--led", given.get("LED", "star3535")]
+                   *(f"--{key.lower()}={given[key]}" for key in ("PROFILE", "FAB", "LED") if key in given)]
     else:
         shutil.rmtree(BUILDS / case.name, ignore_errors=True)
         command = ["make", "--no-print-directory", "lamp", f"BUILD={BUILDS}", f"NAME={case.name}", *case.make, *profile]

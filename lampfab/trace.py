@@ -346,9 +346,8 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
 
     mi = scene.mi
     sizes = [r * c for r, c in shapes]
-    counts = np.zeros(sum(sizes), np.int64)
     ghost_counts: dict[int, np.ndarray] = {}
-    direct_by_parity = np.zeros((2, sum(sizes)), np.int64)
+    direct_by_parity = np.zeros((2, sum(sizes)), np.int64)  # never-reflected landings, even and odd batches
     traced_by_parity = [0, 0]
     trapped = 0
     traced = 0
@@ -366,11 +365,11 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
                 wall, xy = wall_landings(mi, walls, o_out, d_out)
                 keep = (wall >= 0) & (place == 0)
                 kernel_moments.add(to_numpy(o_out)[keep], wall[keep], xy[keep])
-            counts[:] += np.bincount(pixel[pixel >= 0], minlength=len(counts))
-            direct_by_parity[batch % 2] += np.bincount(pixel[(pixel >= 0) & (place == 0)], minlength=len(counts))
+            size = direct_by_parity.shape[1]
+            direct_by_parity[batch % 2] += np.bincount(pixel[(pixel >= 0) & (place == 0)], minlength=size)
             for code in np.unique(place[(pixel >= 0) & (place > 0)]):
-                ghost_counts.setdefault(int(code), np.zeros(len(counts), np.int64))
-                ghost_counts[code] += np.bincount(pixel[(pixel >= 0) & (place == code)], minlength=len(counts))
+                ghost_counts.setdefault(int(code), np.zeros(size, np.int64))
+                ghost_counts[code] += np.bincount(pixel[(pixel >= 0) & (place == code)], minlength=size)
 
         traced += dr.width(d)
         traced_by_parity[batch % 2] += dr.width(d)
@@ -379,10 +378,11 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     def per_wall(c):
         return [img.reshape(s) for img, s in zip(np.split(c / traced, np.cumsum(sizes)[:-1]), shapes)]
 
-    images = per_wall(counts)
+    ghosts = sum(ghost_counts.values(), np.zeros(direct_by_parity.shape[1], np.int64))
+    images = per_wall(direct_by_parity.sum(axis=0) + ghosts)
     shares = [float(img.sum()) for img in images]
     info = {"shares": shares, "lost": 1.0 - sum(shares) - trapped / traced, "trapped": trapped / traced,
-            "ghosts": per_wall(sum(ghost_counts.values(), np.zeros(len(counts), np.int64))), "photons": traced,
+            "ghosts": per_wall(ghosts), "photons": traced,
             "direct_noise": per_wall(_noise_sample(direct_by_parity, traced_by_parity))}
     if reflection_place:
         info["ghosts_by_place"] = {code: per_wall(c) for code, c in sorted(ghost_counts.items())}

@@ -32,6 +32,7 @@ def test_text_too_small_for_the_leds_blur_is_a_warning_naming_an_led_that_reads(
     warnings = budget._warnings(text_build("Sweet dreams little one"), _walls(60.0, 84.0))
     assert len(warnings) == 1 and "may not read" in warnings[0] and "front, left, right" in warnings[0]
     assert "LED=mini1616" in warnings[0]
+    assert "still reads whole" not in warnings[0]  # no OCR figures here: no claim about the words
     assert budget._warnings(text_build("Sweet dreams little one"), _walls(30.0, 42.0)) == []
     assert budget._warnings(text_build("Hi"), _walls(60.0, 84.0)) == []  # two big letters read
 
