@@ -19,14 +19,24 @@ from . import surface
 
 # The sample grid of the outer surface's checks (around, up): 0.35° and 0.35 mm apart on
 # the default lens, finer than any feature a printer or a mill makes.  The design's slope
-# and hollow limits sample at least as finely, or the check would find what they missed.
+# and hollow limits sample at these very points (and more), or the check would find what
+# they missed: a spline steepens between samples, most near a crease.
 SAMPLES = (1024, 256)
 
 
+def cell_samples(grid: tuple[int, int], samples: tuple[int, int] = SAMPLES) -> int:
+    """Samples per spline cell edge of the checks' grid over the (nu, nv) node ``grid``:
+    enough to reach ``samples`` each way, and at least 2, so that every cell is sampled
+    inside, not only at its nodes."""
+    nu, nv = grid
+    return max(2, -(-samples[0] // nu), -(-(samples[1] - 1) // max(nv - 1, 1)))
+
+
 def sample_counts(grid: tuple[int, int], samples: tuple[int, int] = SAMPLES) -> tuple[int, int]:
-    """(mu, mv): ``samples`` raised to at least twice the node counts ``grid`` (nu, nv),
-    so that every spline cell is sampled inside, not only at its nodes."""
-    return max(samples[0], 2 * grid[0]), max(samples[1], 2 * grid[1])
+    """(mu, mv): the checks' sample grid over the (nu, nv) node ``grid``, ``cell_samples``
+    per cell edge from the nodes on (``surface.fine_shape``): a projection that samples
+    every cell k times as finely, k a multiple of it, sees every point the checks see."""
+    return surface.fine_shape(*grid, cell_samples(grid, samples))
 
 
 def fundamental_forms(r, r_u, r_z, r_uu, r_uz, r_zz) -> tuple[np.ndarray, ...]:

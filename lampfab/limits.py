@@ -19,7 +19,7 @@ from functools import lru_cache
 import numpy as np
 
 from . import concavity, surface
-from .curvature import SAMPLES
+from .curvature import cell_samples
 from .profile import Design, Fabrication
 
 # Printed upright, a surface leaning more than this past vertical (i.e. closer than 45 deg
@@ -30,8 +30,9 @@ from .profile import Design, Fabrication
 # A rule of the upright print, not a profile field: the design obeys it too.
 OVERHANG_DEG = 45.0
 
-# The slope projection aims this far under the limit: the fabrication check samples the
-# spline at other points than the projection does.
+# The slope projection aims this far under the limit.  The fabrication check samples the
+# spline at points the projection samples too, so it passes without the margin; the STL's
+# facets and the STEP's refitted B-spline lie between those samples.
 SLOPE_MARGIN_DEG = 0.2
 
 # Where the spline overshoots a limit, the slope projection cuts the steep edges around
@@ -105,11 +106,22 @@ def limit_shape(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float,
     return heights, max_tilt
 
 
+def projection_samples(grid: tuple[int, int]) -> int:
+    """Samples per spline cell edge where ``limit_slopes`` measures the (nu, nv) node
+    ``grid``'s surface: at every point the checks sample (a multiple of
+    ``curvature.cell_samples``), and at least 4.  The spline steepens between samples (a
+    creased one within the last cell before a seam): sampled as finely as the check but
+    at other points, a lens the projection held to 59.8° failed the check at 60.2°."""
+    k_check = cell_samples(grid)
+    return k_check * -(-4 // k_check)
+
+
 def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float,
                  max_overhang_deg: float | None = None, passes: int = 60) -> tuple[np.ndarray, float]:
     """The surface closest to ``heights`` whose spline tilts at most ``max_tilt_deg``
     against the radial direction and, with ``max_overhang_deg`` (a print), faces down at
-    most that far past vertical, measured as finely as the fabrication check does.
+    most that far past vertical, measured at every point the fabrication check samples
+    (``projection_samples``).
 
     Node-to-node slopes steeper than a clamp are cut back to it, and only that
     correction is integrated (least squares), so detail elsewhere is kept.  Where the
@@ -121,11 +133,9 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     Returns (heights (nu, nv) mm, max tilt deg).
     """
     nu, nv = heights.shape
-    # As finely as the check samples it (a creased spline can steepen within the last cell
-    # before a seam), and at least 4 samples per cell.
-    k = max(4, -(-SAMPLES[0] // nu))
+    k = projection_samples((nu, nv))
     fine = surface.fine_shape(nu, nv, k)
-    # Aim a little under the limits: the check samples the spline at other points.
+    # Aim a little under the limits (``SLOPE_MARGIN_DEG``).
     max_tilt_deg -= SLOPE_MARGIN_DEG
     max_rise_deg = 90.0 if max_overhang_deg is None else max_overhang_deg - SLOPE_MARGIN_DEG
 

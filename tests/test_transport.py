@@ -205,6 +205,22 @@ def test_transport_alone_projects_the_target(tiny_design, inner_layer):
         assert img[target > 0].sum() > 0.75 * img.sum()          # a plain lens: ~0.3, the disc's area
 
 
+@pytest.mark.parametrize("grid", [(512, 129), (256, 65), (128, 33), (1024, 257), (64, 17), (96, 13)])
+def test_the_slope_projection_samples_every_point_the_check_samples(cyl, grid):
+    """The profiles' grids and two odd ones: the check's sample points (u around, z up)
+    are among the projection's, so a surface the projection passes, the check passes.
+    Sampled as finely but at other points, a panorama the projection held to 59.8° failed
+    the 60° check at 60.2°."""
+    nu, nv = grid
+    mu, mv = curvature.sample_counts(grid)
+    assert mu >= curvature.SAMPLES[0] and mv >= curvature.SAMPLES[1]
+    pu, pv = surface.fine_shape(nu, nv, limits.projection_samples(grid))
+    assert pu >= 4 * nu
+    for checked, projected in ((cyl.node_u(mu), cyl.node_u(pu)), (cyl.node_z(mv), cyl.node_z(pv))):
+        nearest = np.abs(checked[:, None] - projected[None, :]).min(axis=1)
+        assert nearest.max() < 1e-9
+
+
 def test_slope_projection_meets_the_limit_and_keeps_gentle_parts(cyl, rng):
     nu, nv = 64, 17
     heights = np.zeros((nu, nv))

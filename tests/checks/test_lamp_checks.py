@@ -20,7 +20,7 @@ from lampfab.profile import PROFILE_DIR, Fabrication, load_fabrication
 
 R, H = 30.0, 40.0
 NU, NV = 64, 16
-SAMPLES = (256, 64)
+SAMPLES = (256, 61)  # 4 samples per cell edge each way (curvature.sample_counts)
 ROOT_FAB = PROFILE_DIR / "fab"
 CYL = surface.Cylinder(R, H)
 LIGHT = np.array([0.0, 0.0, 20.0])
