@@ -346,8 +346,9 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
 
     mi = scene.mi
     sizes = [r * c for r, c in shapes]
+    pixels = sum(sizes)
     ghost_counts: dict[int, np.ndarray] = {}
-    direct_by_parity = np.zeros((2, sum(sizes)), np.int64)  # never-reflected landings, even and odd batches
+    direct_by_parity = np.zeros((2, pixels), np.int64)  # never-reflected landings, even and odd batches
     traced_by_parity = [0, 0]
     trapped = 0
     traced = 0
@@ -365,11 +366,10 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
                 wall, xy = wall_landings(mi, walls, o_out, d_out)
                 keep = (wall >= 0) & (place == 0)
                 kernel_moments.add(to_numpy(o_out)[keep], wall[keep], xy[keep])
-            size = direct_by_parity.shape[1]
-            direct_by_parity[batch % 2] += np.bincount(pixel[(pixel >= 0) & (place == 0)], minlength=size)
+            direct_by_parity[batch % 2] += np.bincount(pixel[(pixel >= 0) & (place == 0)], minlength=pixels)
             for code in np.unique(place[(pixel >= 0) & (place > 0)]):
-                ghost_counts.setdefault(int(code), np.zeros(size, np.int64))
-                ghost_counts[code] += np.bincount(pixel[(pixel >= 0) & (place == code)], minlength=size)
+                ghost_counts.setdefault(int(code), np.zeros(pixels, np.int64))
+                ghost_counts[code] += np.bincount(pixel[(pixel >= 0) & (place == code)], minlength=pixels)
 
         traced += dr.width(d)
         traced_by_parity[batch % 2] += dr.width(d)
@@ -378,7 +378,7 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     def per_wall(c):
         return [img.reshape(s) for img, s in zip(np.split(c / traced, np.cumsum(sizes)[:-1]), shapes)]
 
-    ghosts = sum(ghost_counts.values(), np.zeros(direct_by_parity.shape[1], np.int64))
+    ghosts = sum(ghost_counts.values(), np.zeros(pixels, np.int64))
     images = per_wall(direct_by_parity.sum(axis=0) + ghosts)
     shares = [float(img.sum()) for img in images]
     info = {"shares": shares, "lost": 1.0 - sum(shares) - trapped / traced, "trapped": trapped / traced,

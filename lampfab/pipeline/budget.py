@@ -162,7 +162,8 @@ def _warnings(build, walls: dict) -> list[str]:
         if short:
             evidence = (f"; even a perfect lens would show OCR only {', '.join(short)} words (the target blurred "
                         f"by this LED)")
-        elif all(walls[n].get("perfect_words_read", -1) == walls[n].get("words") for n in names):  # OCR ran
+        elif all("perfect_words_read" in walls[n] and walls[n]["perfect_words_read"] == walls[n]["words"]
+                 for n in names):  # OCR ran on every such wall and read every word
             evidence = "; blurred by this LED the target still reads whole, so expect most words to read"
         else:
             evidence = ""
