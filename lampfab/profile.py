@@ -95,7 +95,8 @@ class Optimize:
     tessellation: int = _spec(4, 1, 16, doc="mesh vertices per heightmap cell edge (the STL uses the same)")
     transport_rounds: int = _spec(4, 1, 20, doc="fitting steps per transport pass (a panel: position/normal rounds)")
     transport_photons: int = _spec(500_000, 10_000, 100_000_000, doc="photons the transport design traces")
-    transport_corrections: int = _spec(3, 0, 20, doc="trace-and-refit passes after the first transport")
+    transport_corrections: int = _spec(3, 0, 20, doc="trace-and-refit passes after the first transport: a lens "
+                                                        "spends their steps in passes that end when a step stops paying")
     dump_share: float = _spec(0.1, 0.0, 0.9, doc="light the transport sends above and below the image "
                                                  "(the lens's top and bottom need the steepest slopes)")
     smoothness: float = _spec(1e-2, 0.0, 10.0, doc="curvature penalty of the transport's surface fit")

@@ -400,10 +400,12 @@ class RayMap:
             jac = pick @ sp.diags(r / n_len) @ grid.d_z
         return [(excess, jac)]
 
-    def fit(self, heights: np.ndarray, goals: np.ndarray, iterations: int, on_step=None) -> tuple[np.ndarray, dict]:
+    def fit(self, heights: np.ndarray, goals: np.ndarray, iterations: int, on_step=None,
+            min_gain: float = 0.0) -> tuple[np.ndarray, dict]:
         """Levenberg-Marquardt from ``heights`` (nu, nv) mm towards ``goals`` (n_photons, 2)
-        mm (NaN: no goal); ``on_step(figures)`` after each step taken.  Returns (heights,
-        figures of the last iterate)."""
+        mm (NaN: no goal), at most ``iterations`` steps; ``on_step(figures)`` after each step
+        taken.  With ``min_gain`` > 0 it ends after a step that lowers the mean squared landing
+        error by less than that share of it.  Returns (heights, figures of the last iterate)."""
         grid = self.grid(heights.shape)
         coef = grid.coef(heights)
         current = self._linearized(grid, self._terms(grid, coef, goals))
@@ -415,6 +417,7 @@ class RayMap:
                 step = _solve(current["matrix"] + damping * sp.diags(diagonal), -current["gradient"])
                 trial = self._terms(grid, coef + step.reshape(coef.shape), goals)
                 if trial["value"] < current["value"]:
+                    stalled = min_gain > 0 and trial["data"] > (1.0 - min_gain) * current["data"]
                     coef, current = coef + step.reshape(coef.shape), self._linearized(grid, trial)
                     damping = max(damping / DAMPING_DOWN, 1e-6)
                     taken += 1
@@ -424,6 +427,8 @@ class RayMap:
                 break  # no step lowers the objective: converged as far as it goes
             if on_step:
                 on_step(_figures(current, taken))
+            if stalled:
+                break
         return grid.nodes(coef), _figures(current, taken)
 
 

@@ -90,6 +90,32 @@ def test_fit_finds_a_surface_that_lands_photons_at_its_goals(photons, default_de
     assert np.abs(error - error.mean()).max() < 0.5
 
 
+def test_a_fit_with_a_minimum_gain_ends_after_the_first_step_that_gains_less(photons, default_design, cyl):
+    """The same fit, unbounded and with ``min_gain``: the bounded one takes the same steps
+    and ends right after the first whose landing error (mean square) fell by less."""
+    walls = room.walls(default_design)
+    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
+    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, PRINTED, 1e-4)
+    u = cyl.node_u(32)[:, None]
+    z = cyl.node_z(9)[None, :]
+    truth = 3.0 * np.sin(3 * u) * np.cos(np.pi * z / cyl.height_mm)
+    land = fitter.trace(truth)
+    goals = np.full((len(wall_of), 2), np.nan)
+    goals[land.index[land.ok]] = land.xy[land.ok]
+    start = np.zeros_like(truth)
+    steps = []
+    _, initial = fitter.fit(start, goals, 0)
+    fitter.fit(start, goals, 8, steps.append)
+    errors = np.square([initial["rms_landing_error_mm"]] + [f["rms_landing_error_mm"] for f in steps])
+    gains = 1.0 - errors[1:] / errors[:-1]
+    min_gain = 0.03
+    assert len(steps) == 8 and gains.min() < min_gain and gains[0] >= min_gain  # the case tests something
+    expected = int(np.argmax(gains < min_gain)) + 1
+    _, bounded = fitter.fit(start, goals, 8, min_gain=min_gain)
+    assert bounded["steps_taken"] == expected
+    assert bounded["rms_landing_error_mm"] == steps[expected - 1]["rms_landing_error_mm"]
+
+
 def test_a_photon_without_a_landing_derivative_steers_nothing(photons, default_design, cyl):
     """Where a difference of the landing is undefined (NaN), the fit's linear system leaves
     that photon out instead of turning NaN."""
@@ -190,9 +216,13 @@ def test_transport_alone_projects_the_target(tiny_design, inner_layer):
                    smoothness=1e-2, seed=0, transport_corrections=2, dump_share=0.1)
     heights, figures = transport.design(cyl, walls, targets, *inner_layer, light, 1.5, PRINTED, opt,
                                         log=lambda m: None)
-    # Each correction pass starts from light that lands closer to the target than before.
-    first, second = (p["landed_density_error"] for p in figures["passes"][1:])
-    assert all(second[w.name] < first[w.name] for w in walls)
+    # The correction passes spend their budget of steps, and the last starts from light that
+    # lands closer to the target than the first.
+    corrections = figures["passes"][1:]
+    assert len(corrections) >= 2
+    assert sum(max(p["steps_taken"], 1) for p in corrections) == opt.transport_corrections * opt.transport_rounds
+    first, last = corrections[0]["landed_density_error"], corrections[-1]["landed_density_error"]
+    assert all(last[w.name] < first[w.name] for w in walls)
     assert figures["max_tilt_deg"] <= 45.0
     assert np.abs(heights).max() <= 20.0
     from lampfab import lens, metrics
