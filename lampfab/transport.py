@@ -77,7 +77,7 @@ MIN_STEP_GAIN = 0.03
 # The correction passes end after one that leaves its landing error (mean square) less
 # than this share below the pass before: the lens is as close to the light's goals as
 # its limits let it come, and a further pass costs a trace for nothing.  A milled lens
-# (its tool's radius binds) and the floor's sector get there after two or three passes;
+# (its tool's radius binds) and the floor's sector get there after three or four passes;
 # on the default profile every pass gains 1.3 % or more (bench/RESULTS.md).
 MIN_PASS_GAIN = 0.01
 
