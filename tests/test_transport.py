@@ -66,19 +66,27 @@ def test_landing_agrees_with_the_photon_tracer(mi, photons, default_design, cyl)
     assert np.mean(pixel[on_wall] == expected[on_wall]) > 0.995  # the rest sit on a pixel's edge (float32)
 
 
+def _bumpy_goals(photons, design, cyl, tilt):
+    """A fitter on a 32 x 9 grid, a known bumpy surface (plus ``tilt``, mm, broadcast over
+    it), and the goals it lands each photon at."""
+    walls = room.walls(design)
+    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(design), 1.5, 45.0)
+    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, PRINTED, 1e-4)
+    u = cyl.node_u(32)[:, None]
+    z = cyl.node_z(9)[None, :]
+    truth = 3.0 * np.sin(3 * u) * np.cos(np.pi * z / cyl.height_mm) + tilt
+    land = fitter.trace(truth)
+    goals = np.full((len(wall_of), 2), np.nan)
+    goals[land.index[land.ok]] = land.xy[land.ok]
+    return fitter, truth, goals
+
+
 @pytest.mark.parametrize("creased", [False, True])
 def test_fit_finds_a_surface_that_lands_photons_at_its_goals(photons, default_design, cyl, creased):
     """Goals made by a known bumpy surface: the fit from a plain cylinder lands the light there."""
     cyl = surface.Cylinder(cyl.radius_mm, cyl.height_mm, creased)
-    walls = room.walls(default_design)
-    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
-    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, PRINTED, 1e-4)
-    u = cyl.node_u(32)[:, None]
     z = cyl.node_z(9)[None, :]
-    truth = 3.0 * np.sin(3 * u) * np.cos(np.pi * z / cyl.height_mm) + 0.02 * (z - 45.0)
-    land = fitter.trace(truth)
-    goals = np.full((len(wall_of), 2), np.nan)
-    goals[land.index[land.ok]] = land.xy[land.ok]
+    fitter, truth, goals = _bumpy_goals(photons, default_design, cyl, 0.02 * (z - 45.0))
     start = fitter.trace(np.zeros_like(truth))
     before = np.sqrt(np.nanmean(np.sum((start.xy - goals[start.index]) ** 2, axis=1)))
     fitted, figures = fitter.fit(np.zeros_like(truth), goals, 6)
@@ -93,15 +101,7 @@ def test_fit_finds_a_surface_that_lands_photons_at_its_goals(photons, default_de
 def test_a_fit_with_a_minimum_gain_ends_after_the_first_step_that_gains_less(photons, default_design, cyl):
     """The same fit, unbounded and with ``min_gain``: the bounded one takes the same steps
     and ends right after the first whose landing error (mean square) fell by less."""
-    walls = room.walls(default_design)
-    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
-    fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, PRINTED, 1e-4)
-    u = cyl.node_u(32)[:, None]
-    z = cyl.node_z(9)[None, :]
-    truth = 3.0 * np.sin(3 * u) * np.cos(np.pi * z / cyl.height_mm)
-    land = fitter.trace(truth)
-    goals = np.full((len(wall_of), 2), np.nan)
-    goals[land.index[land.ok]] = land.xy[land.ok]
+    fitter, truth, goals = _bumpy_goals(photons, default_design, cyl, 0.0)
     start = np.zeros_like(truth)
     steps = []
     _, initial = fitter.fit(start, goals, 0)
