@@ -11,8 +11,10 @@ of each method runs only while it computes (init included); measuring pauses it.
 each wall-clock budget the current surface is made what the printer gets (projected
 onto the fabrication limits, merged with the inner layer and the LED bore: the solid
 whose triangles lens.stl holds) and traced with its true facets, as verify does (the
-profile's ``[verify] photons``, stratified; 64 px wide, point light): Pearson r and SSIM
-per wall, and the share of the emitted light on the walls.  Prints a table and the ratios; --record appends them to
+profile's ``[verify] photons``, stratified; 64 px wide) from the profile's LED, what a
+person sees and what the default designs for, and from the ideal point light: Pearson r
+and SSIM per wall, and the share of the emitted light on the walls.  The ratios compare
+the LED's figures.  Prints a table and the ratios; --record appends them to
 today's file in bench/log/ with the machine.
 """
 
@@ -40,15 +42,21 @@ GOAL_R = 0.9
 
 
 def measure(build, inner, runner, heights, targets) -> dict:
-    """verify's figures for the solid that would be exported from ``heights``."""
+    """verify's figures for the solid that would be exported from ``heights``: with the
+    LED (``r``, ``ssim``, per wall and the least) and the point light (``point_...``)."""
     made = runner.makeable(heights)
     s = solid.build_solid(build.cylinder, made, build.design.optimize.tessellation, *inner, build.fab.mount_radius_mm)
-    images, info = trace.render_walls(trace.MeshScene(s.vertices, s.faces), build.light, 0.0, build.fab.ior,
-                                      build.walls, [t.shape for t in targets], build.design.verify.photons, seed=99)
-    figs = [metrics.compare(i, t) for i, t in zip(images, targets)]
-    return {"r": min(f["pearson"] for f in figs), "ssim": min(f["ssim"] for f in figs),
-            "r_walls": [f["pearson"] for f in figs], "ssim_walls": [f["ssim"] for f in figs],
-            "share": sum(info["shares"])}
+    scene = trace.MeshScene(s.vertices, s.faces)
+    out = {}
+    for prefix, radius in (("", build.led.radius_mm), ("point_", 0.0)):
+        images, info = trace.render_walls(scene, build.light, radius, build.fab.ior, build.walls,
+                                          [t.shape for t in targets], build.design.verify.photons, seed=99,
+                                          light_length_mm=build.led.length_mm if radius else 0.0)
+        figs = [metrics.compare(i, t) for i, t in zip(images, targets)]
+        out.update({f"{prefix}r": min(f["pearson"] for f in figs), f"{prefix}ssim": min(f["ssim"] for f in figs),
+                    f"{prefix}r_walls": [f["pearson"] for f in figs], f"{prefix}ssim_walls": [f["ssim"] for f in figs],
+                    f"{prefix}share": sum(info["shares"])})
+    return out
 
 
 def run_method(name, build, inner, targets, budgets, start_heights, opt, elapsed0) -> list[dict]:
@@ -70,9 +78,13 @@ def run_method(name, build, inner, targets, budgets, start_heights, opt, elapsed
             last["steps"] = state.step
         row = dict(last, method=name, budget_s=budget, spent_s=round(spent, 1))
         rows.append(row)
-        print(f"{name:9s} {budget:6.0f} s  {row['steps']:5d} steps  r {row['r']:.3f}  SSIM {row['ssim']:.3f}  "
-              f"light on walls {row['share']:.1%}", flush=True)
+        print(f"{name:9s} {budget:6.0f} s  {row['steps']:5d} steps  {_figures(row)}", flush=True)
     return rows
+
+
+def _figures(row) -> str:
+    return (f"LED r {row['r']:.3f}  SSIM {row['ssim']:.3f}  point r {row['point_r']:.3f}  "
+            f"SSIM {row['point_ssim']:.3f}  light on walls {row['share']:.1%}")
 
 
 def _first(rows, r_min):
@@ -129,19 +141,19 @@ def main() -> None:
             row = dict(measure(build, inner, probe, h, targets), method=f"transport pass {k + 1}",
                        budget_s=round(at, 1), spent_s=round(at, 1), steps=0)
             pass_rows.append(row)
-            print(f"{'transport':9s} {at:6.1f} s  pass {k + 1}  r {row['r']:.3f}  SSIM {row['ssim']:.3f}  "
-                  f"light on walls {row['share']:.1%}", flush=True)
+            print(f"{'transport':9s} {at:6.1f} s  pass {k + 1}  {_figures(row)}", flush=True)
         init_row = dict(measure(build, inner, probe, heights, targets), method="transport only",
                         budget_s=round(init_s, 1), spent_s=round(init_s, 1), steps=0)
-        print(f"{'transport':9s} {init_s:6.1f} s  {0:5d} steps  r {init_row['r']:.3f}  SSIM {init_row['ssim']:.3f}  "
-              f"light on walls {init_row['share']:.1%}  (before any gradient step)", flush=True)
+        print(f"{'transport':9s} {init_s:6.1f} s  {0:5d} steps  {_figures(init_row)}  (before any gradient step)",
+              flush=True)
         splat_rows = run_method("lampfab", build, inner, targets, [b for b in budgets if b >= init_s], heights,
                                 splat_opt, init_s)
 
-    report(args, budgets, ptracer_rows, pass_rows + [init_row], splat_rows, steps, d.verify.photons)
+        led = f"{build.led.name} ({build.led.shape}, {build.led.radius_mm:g} mm radius)"
+    report(args, budgets, ptracer_rows, pass_rows + [init_row], splat_rows, steps, d.verify.photons, led)
 
 
-def report(args, budgets, ptracer_rows, init_rows, splat_rows, ptracer_steps, photons) -> None:
+def report(args, budgets, ptracer_rows, init_rows, splat_rows, ptracer_steps, photons, led) -> None:
     best_ptracer = max(r["r"] for r in ptracer_rows)
     ptracer_at = _first(ptracer_rows, best_ptracer)
     # ptracer got there after the budget before (a lower bound on its time) ...
@@ -156,13 +168,16 @@ def report(args, budgets, ptracer_rows, init_rows, splat_rows, ptracer_steps, ph
              f"{platform.processor() or 'CPU'}, {os.cpu_count()} cores, Mitsuba {mi.__version__} {mi.variant()}", "",
              f"ptracer: {ptracer_steps} steps planned (as many as fit the largest budget); lampfab: the {args.profile} "
              f"profile, its transport passes timed as they end, then its gradient steps at the budgets. "
-             f"Each measured on the solid lens.stl would hold, {photons:,} stratified photons, {VERIFY_PX} px.", "",
-             "| method | at s | steps | min r | min SSIM | r per wall | SSIM per wall | light on walls |",
-             "|---|---|---|---|---|---|---|---|"]
+             f"Each measured on the solid lens.stl would hold, {photons:,} stratified photons, {VERIFY_PX} px, "
+             f"from the {led} LED and from the point light; the ratios compare the LED's figures.", "",
+             "| method | at s | steps | min r | min SSIM | r per wall | SSIM per wall | point: min r / SSIM "
+             "| light on walls |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in ptracer_rows + lampfab_rows:
         lines.append(f"| {r['method']} | {r['budget_s']} | {r['steps']} | {r['r']:.3f} | {r['ssim']:.3f} | "
                      f"{' / '.join(f'{x:.3f}' for x in r['r_walls'])} | "
-                     f"{' / '.join(f'{x:.3f}' for x in r['ssim_walls'])} | {r['share']:.1%} |")
+                     f"{' / '.join(f'{x:.3f}' for x in r['ssim_walls'])} | {r['point_r']:.3f} / "
+                     f"{r['point_ssim']:.3f} | {r['share']:.1%} |")
     lines.append("")
     lines.append(f"- ptracer's best min r within {budgets[-1]:.0f} s: {best_ptracer:.3f}, seen at the "
                  f"{ptracer_at:.0f} s budget (reached after more than {ptracer_low:.0f} s).")
