@@ -54,8 +54,8 @@ def measure(build, inner, runner, heights, targets) -> dict:
                                           light_length_mm=build.led.length_mm if radius else 0.0)
         figs = [metrics.compare(i, t) for i, t in zip(images, targets)]
         out.update({f"{prefix}r": min(f["pearson"] for f in figs), f"{prefix}ssim": min(f["ssim"] for f in figs),
-                    f"{prefix}r_walls": [f["pearson"] for f in figs], f"{prefix}ssim_walls": [f["ssim"] for f in figs],
-                    f"{prefix}share": sum(info["shares"])})
+                    f"{prefix}r_walls": [f["pearson"] for f in figs], f"{prefix}ssim_walls": [f["ssim"] for f in figs]})
+        out.setdefault("share", sum(info["shares"]))  # the LED's, traced first
     return out
 
 

@@ -126,26 +126,22 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
         heights, fit = fitter.fit(heights, goals, 2 * iterations, on_step)
         heights = surface.refine(cyl, heights, 4)
         report(heights)
-    heights, fit = fitter.fit(heights, goals, iterations, on_step)
-    report(heights)
-    goals, landed = landing_goals(fitter.trace(heights), wall_of, walls, targets, dump_share)
-    figures["passes"].append({**fit, "landed_density_error": landed})
-    kept, kept_error = 0, np.mean(list(landed.values()))
-    budget, current = opt.transport_corrections * iterations, heights
-    while budget > 0:
-        current, fit = fitter.fit(current, goals, min(iterations, budget), on_step, MIN_STEP_GAIN)
-        budget -= max(fit["steps_taken"], 1)
+    current, fit = fitter.fit(heights, goals, iterations, on_step)
+    budget, kept_error = opt.transport_corrections * iterations, np.inf
+    while True:
         report(current)
         goals, landed = landing_goals(fitter.trace(current), wall_of, walls, targets, dump_share)
         figures["passes"].append({**fit, "landed_density_error": landed})
         error = np.mean(list(landed.values()))
-        log(f"transport: correction {len(figures['passes']) - 1}: {fit['steps_taken']} steps, "
+        log(f"transport: pass {len(figures['passes']) - 1}: {fit['steps_taken']} steps, "
             f"landed density error {error:.3f}")
         held = fit["steps_taken"] <= 1 and error > (1.0 - MIN_PASS_GAIN) * kept_error
         if error < kept_error:
             heights, kept, kept_error = current, len(figures["passes"]) - 1, error
-        if held:
+        if held or budget <= 0:
             break
+        current, fit = fitter.fit(current, goals, min(iterations, budget), on_step, MIN_STEP_GAIN)
+        budget -= max(fit["steps_taken"], 1)
     figures["kept_pass"] = kept
     bound = limits.max_offset_mm
     heights, max_tilt = limit_shape(cyl, np.clip(heights, -bound, bound), limits.max_slope_deg,

@@ -224,23 +224,23 @@ def test_the_passes_keep_the_lens_whose_light_lands_closest(tiny_design, inner_l
     opt = dataclasses.replace(opt, transport_corrections=4)
     # (steps the fit takes, density error where its lens lands): the first fit, then passes.
     script = iter([(3, 0.50), (3, 0.40), (3, 0.45), (2, 0.30), (1, 0.31), (3, 0.10)])
-    fits = []
+    landed_errors = []
 
     def fit(self, heights, goals, iterations, on_step=None, min_gain=0.0):
         steps, error = next(script)
-        fits.append(error)
+        landed_errors.append(error)
         return heights + 1.0, {"rms_landing_error_mm": 1.0, "max_tilt_deg": 0.0, "steps_taken": steps}
 
     def landed(land, wall_of, walls, targets, dump_share):
-        return np.zeros((len(wall_of), 2)), {w.name: fits[-1] for w in walls}
+        return np.zeros((len(wall_of), 2)), {w.name: landed_errors[-1] for w in walls}
 
     monkeypatch.setattr(raymap.RayMap, "fit", fit)
     monkeypatch.setattr(transport, "landing_goals", landed)
     heights, figures = transport.design(surface.Cylinder(45.0, 90.0, creased=True), walls, targets, *inner_layer,
                                         room.light_position(tiny_design), 1.5, PRINTED, opt, log=lambda m: None)
-    assert fits == [0.50, 0.40, 0.45, 0.30, 0.31]   # the held fifth fit ends them, budget left
+    assert landed_errors == [0.50, 0.40, 0.45, 0.30, 0.31]   # the held fifth fit ends them, budget left
     assert figures["kept_pass"] == 3
-    np.testing.assert_allclose(heights, 4.0)          # the fourth fit's lens: each fit adds 1 mm
+    np.testing.assert_allclose(heights, 4.0)                   # the fourth fit's lens: each fit adds 1 mm
 
 
 @pytest.mark.slow
