@@ -83,17 +83,20 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
     px = build.design.optimize.sensor_px
     targets = build.targets(px)
     texts = build.texts_to_read()
-    walls, worst = {}, []
+    walls, worst, soft = {}, [], []
     for k, (wall, target) in enumerate(zip(build.walls, targets)):
         blur = kernels.blur_figures(k, wall)
         if blur is None:
             continue
         median = blur["led_blur_mm"]
-        blurred = sharpness.blur(target, kernels.field(k, wall, target.shape), wall)
+        field = kernels.field(k, wall, target.shape)
+        blurred = sharpness.blur(target, field, wall)
         walls[wall.name] = {
             **blur, "led_blur_px": {axis: mm / (wall.width_mm / px) for axis, mm in median.items()},
             "resolvable_across": wall.width_mm / median["horizontal"],
             "detail_ssim": metrics.ssim(blurred, target)}
+        if walls[wall.name]["detail_ssim"] < DETAIL_SSIM:
+            soft.append((wall, target, field))
         if wall.name in texts:
             # The sharp target's reading too: at 64 px Tesseract misses a word of some
             # sharp phrases, which is the reader's limit, not the LED's.
@@ -104,10 +107,37 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
     figures = {"design_px": px, "led": profile.as_dict(build.led), "walls": walls,
                "finest_detail_mm": float(np.median(worst)) if worst else None}
     figures["halve"] = _halve(build, walls)
-    figures["warnings"] = _warnings(build, walls)
+    figures["sharper_led"] = _sharper_led(build, soft)
+    figures["warnings"] = _warnings(build, walls, figures["sharper_led"])
     blur_px = max((max(w["led_blur_px"].values()) for w in walls.values()), default=None)
     figures["finer_design"] = bool(blur_px is not None and blur_px < FINER_DESIGN_BLUR_PX and px < FINER_DESIGN_PX)
     return figures
+
+
+def _sharper_led(build, soft: list) -> dict | None:
+    """The largest bundled ball-shaped LED smaller than the build's with which every wall
+    in ``soft`` ((wall, target, kernel field) of the walls whose detail the LED blurs
+    away) would keep its detail (``DETAIL_SSIM``), or else the smallest one; None when no
+    wall is soft or the build's LED is not a ball (a filament's blur has another shape).
+    Returns {"name", "radius_mm", "detail_ssim": {wall: SSIM}, "enough": bool}.
+
+    The kernels scale with the emitter's size, as in ``_halve``: their covariances by
+    the square of the radii's ratio.
+    """
+    if not soft or build.led.shape != "sphere":
+        return None
+    smaller = sorted((o for o in _bundled_leds() if o.shape == "sphere" and 0 < o.radius_mm < build.led.radius_mm),
+                     key=lambda o: -o.radius_mm)
+    found = None
+    for led in smaller:
+        scale = (led.radius_mm / build.led.radius_mm) ** 2
+        scores = {wall.name: metrics.ssim(sharpness.blur(target, field * scale, wall), target)
+                  for wall, target, field in soft}
+        found = {"name": led.name, "radius_mm": led.radius_mm, "detail_ssim": scores,
+                 "enough": min(scores.values()) >= DETAIL_SSIM}
+        if found["enough"]:
+            break
+    return found
 
 
 def _halve(build, walls: dict) -> str:
@@ -132,15 +162,24 @@ def _halve(build, walls: dict) -> str:
             f"walls half as far halve it in mm, not in pixels (the pictures shrink with them)")
 
 
-def _warnings(build, walls: dict) -> list[str]:
-    """What the maker should know before the long stages (warnings, not errors)."""
+def _warnings(build, walls: dict, sharper: dict | None = None) -> list[str]:
+    """What the maker should know before the long stages (warnings, not errors);
+    ``sharper``: ``_sharper_led``'s finding."""
     from .. import targets
 
     out = []
     soft = [f"{name} {w['detail_ssim']:.3f}" for name, w in walls.items() if w["detail_ssim"] < DETAIL_SSIM]
     if soft:
+        if sharper is None:
+            advice = "choose a smaller LED"
+        else:
+            scores = sharper["detail_ssim"].values()
+            figure = f"{min(scores):.3f}" + (f"-{max(scores):.3f}" if len(scores) > 1 else "")
+            led = f"LED={sharper['name']} ({sharper['radius_mm']:g} mm radius)"
+            advice = (f"choose {led}, with which it would score {figure}" if sharper["enough"] else
+                      f"even the smallest bundled LED, {led}, would leave it at {figure}")
         out.append(f"the picture holds detail finer than this LED can show: blurred by it, it scores SSIM "
-                   f"{', '.join(soft)} against itself (below {DETAIL_SSIM}); expect it soft, or choose a smaller LED")
+                   f"{', '.join(soft)} against itself (below {DETAIL_SSIM}); expect it soft, or {advice}")
     unreadable = []  # (wall, blur mm, em mm)
     texts = build.wall_texts()
     for wall in build.walls:
@@ -173,8 +212,12 @@ def _warnings(build, walls: dict) -> list[str]:
     return out
 
 
+def _bundled_leds() -> list[profile.Led]:
+    """The LED profiles in ``profiles/led/``."""
+    return [profile.load_led(str(p)) for p in sorted((profile.PROFILE_DIR / "led").glob("*.toml"))]
+
+
 def _largest_led(max_radius_mm: float) -> profile.Led | None:
     """The bundled ball-shaped LED of the largest radius up to ``max_radius_mm``."""
-    balls = [profile.load_led(str(p)) for p in sorted((profile.PROFILE_DIR / "led").glob("*.toml"))]
-    return max((o for o in balls if o.shape == "sphere" and 0 < o.radius_mm <= max_radius_mm),
+    return max((o for o in _bundled_leds() if o.shape == "sphere" and 0 < o.radius_mm <= max_radius_mm),
                key=lambda o: o.radius_mm, default=None)

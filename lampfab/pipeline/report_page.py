@@ -48,7 +48,7 @@ def write(build: Build, figures: dict, pics: dict) -> None:
     plan = (build.stage_report("plan") or {}).get("figures", {})
     checks_report = build.checks_report()
     checks = [CheckResult.from_json(c) for c in checks_report["figures"]["checks"]] if checks_report else []
-    text, tone = verdict(build, figures, checks)
+    text, tone = verdict(build, figures, checks, plan.get("sharpness", {}).get("sharper_led"))
     room_picture, lens_pictures = build.kind.report_pictures(build, pics)
     sections = [("The lens", '<div class="row">' + "".join(report.figure(p) for p in lens_pictures) + "</div>")]
     if plan.get("sharpness"):
@@ -77,13 +77,24 @@ WELL_R = 0.95
 RECOGNISABLE_R = 0.85
 
 
-def verdict(build: Build, figures: dict, checks: list) -> tuple[str, str]:
+def verdict(build: Build, figures: dict, checks: list, sharper_led: dict | None = None) -> tuple[str, str]:
     """The report's one line: does it project well, does it pass, what to send where;
-    and its tone ("good", "warn", "bad")."""
+    and its tone ("good", "warn", "bad").  ``sharper_led``: plan's LED that would show
+    the picture's detail (``budget._sharper_led``)."""
+    from .budget import DETAIL_SSIM
+
     walls = figures["walls"]
     r = min(w["led_pearson"] for w in walls.values())
     light = figures["real_light"]
-    if r >= WELL_R:
+    # The target blurred by this lens's own LED kernels: under DETAIL_SSIM the picture
+    # holds detail no design can show with this LED, however well its r reads.
+    reference = min((w["led_reference_ssim"] for w in walls.values() if "led_reference_ssim" in w), default=1.0)
+    if r >= WELL_R and reference < DETAIL_SSIM:
+        instead = (f" ({'LED=' + sharper_led['name']} would show it)" if sharper_led and sharper_led["enough"]
+                   else "")
+        look, tone = (f"Projects your picture as well as the real {light} allows (r {r:.2f} or better on every "
+                      f"wall), but soft: it holds detail finer than this LED can show{instead}"), "warn"
+    elif r >= WELL_R:
         look, tone = f"Projects your picture well with the real {light} (r {r:.2f} or better on every wall)", "good"
     elif r >= RECOGNISABLE_R:
         look, tone = (f"Projects your picture recognisably but softened by the {light}'s blur (r {r:.2f} on its "

@@ -101,3 +101,62 @@ def test_plan_reads_a_perfect_lenss_text_through_the_leds_blur(text_build, phras
         assert max(read) < 4
         assert any("even a perfect lens would show OCR only front" in w and "(sharp 4/4)" in w
                    for w in figures["warnings"])
+
+
+def _checkerboard(rows: int, cols: int, square_px: int) -> "np.ndarray":
+    """Squares of ``square_px`` pixels, alternately bright and dark: detail of that size."""
+    import numpy as np
+
+    yy, xx = np.mgrid[0:rows, 0:cols]
+    return ((yy // square_px + xx // square_px) % 2).astype(float)
+
+
+@pytest.mark.parametrize("blur_mm, named, enough", [
+    ((60.0, 84.0), "mini1616", True),     # the default LED's blur: half of it keeps the squares
+    ((120.0, 168.0), "die1mm", True),     # twice that: the 1.6 mm package smears them too
+    ((240.0, 336.0), "die1mm", False)],   # four times: even the die's third of it does
+    ids=["half the LED", "a third of the LED", "no bundled LED"])
+def test_fine_detail_names_the_led_that_would_show_it(text_build, blur_mm, named, enough):
+    # Squares of 2 px (56 x 56 mm) on every wall, under a blur of 0.5-0.75 px sigma or more.
+    build = text_build("Hi")
+    build.save_targets({w.name: _checkerboard(48, 64, 2) for w in build.walls})
+    figures = budget.summarize(build, _uniform_kernels(build, *blur_mm))
+    assert all(w["detail_ssim"] < budget.DETAIL_SSIM for w in figures["walls"].values())
+    sharper = figures["sharper_led"]
+    assert sharper["name"] == named and sharper["enough"] is enough
+    assert (min(sharper["detail_ssim"].values()) >= budget.DETAIL_SSIM) is enough
+    soft = [w for w in figures["warnings"] if "finer than this LED can show" in w]
+    assert len(soft) == 1
+    if enough:
+        assert f"choose LED={named} (" in soft[0] and "mm radius), with which it would score 0." in soft[0]
+    else:
+        assert "even the smallest bundled LED, LED=die1mm (0.5 mm radius), would leave it at 0." in soft[0]
+
+
+def test_a_picture_the_led_shows_names_no_other_led(text_build):
+    import numpy as np
+
+    build = text_build("Hi")
+    broad = np.zeros((48, 64))
+    broad[12:36, 16:48] = 1.0  # one large square: nothing the LED's blur takes away
+    build.save_targets({w.name: broad for w in build.walls})
+    figures = budget.summarize(build, _uniform_kernels(build, 60.0, 84.0))
+    assert figures["sharper_led"] is None and figures["warnings"] == []
+
+
+def _verify_figures(reference_ssim: float) -> dict:
+    walls = {name: {"led_pearson": 0.97, "led_reference_ssim": reference_ssim} for name in ("front", "left", "right")}
+    return {"walls": walls, "real_light": "LED 1.5 mm"}
+
+
+def test_the_verdict_says_soft_when_the_led_blurs_the_pictures_detail_away(text_build):
+    from lampfab.pipeline.report_page import verdict
+
+    build = text_build("Hi")
+    die = {"name": "die1mm", "radius_mm": 0.5, "detail_ssim": {"front": 0.9}, "enough": True}
+    line, tone = verdict(build, _verify_figures(budget.DETAIL_SSIM - 0.02), [], die)
+    assert tone == "warn" and "soft: it holds detail finer than this LED can show (LED=die1mm would show it)" in line
+    line, tone = verdict(build, _verify_figures(budget.DETAIL_SSIM - 0.02), [], {**die, "enough": False})
+    assert tone == "warn" and "LED=" not in line
+    line, tone = verdict(build, _verify_figures(budget.DETAIL_SSIM + 0.02), [], None)
+    assert tone == "good" and line.startswith("Projects your picture well with the real LED 1.5 mm")
