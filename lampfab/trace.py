@@ -135,10 +135,12 @@ def _take(cls, v, index):
     return cls(*(dr.gather(type(c), c, index) for c in (v.x, v.y, v.z)))
 
 
-def interface(d, n, ior: float):
-    """What happens at a dielectric interface (glass of ``ior`` in air), ``n`` the
-    hit facets' outward normals: (unpolarized Fresnel reflectance, 1 under total
-    internal reflection; reflected unit directions; refracted unit directions)."""
+def interface(d, n, ior):
+    """What happens at a dielectric interface (glass of ``ior`` in air, or ``ior`` the
+    glass's index over that of the medium beyond the facet: a float or, per photon, a
+    Dr.Jit Float), ``n`` the hit facets' outward normals: (unpolarized Fresnel
+    reflectance, 1 under total internal reflection; reflected unit directions; refracted
+    unit directions)."""
     import drjit as dr
 
     cos_dn = dr.dot(d, n)
@@ -155,7 +157,7 @@ def interface(d, n, ior: float):
             dr.normalize(d / eta + (cos_i / eta - cos_t) * facing))
 
 
-def refract_or_reflect(mi, d, n, ior: float, xi):
+def refract_or_reflect(mi, d, n, ior, xi):
     """New unit directions at a dielectric interface (see ``interface``): reflected
     where ``xi`` (uniform in [0, 1)) falls below the Fresnel reflectance."""
     import drjit as dr
@@ -210,12 +212,14 @@ def _concat(cls, a, b):
     return cls(*(dr.concat([x, y]) for x, y in ((a.x, b.x), (a.y, b.y), (a.z, b.z))))
 
 
-def propagate(mi, scene, o, d, ior: float, seed: int, max_bounces: int, on_escape, place=None) -> int:
+def propagate(mi, scene, o, d, ior, seed: int, max_bounces: int, on_escape, place=None) -> int:
     """Follow photons through the lens until they leave it.
 
     One wavefront per interface, compacted so finished photons cost nothing.
     ``scene`` holds one closed solid with outward normals; refraction uses the hit
-    facet's geometric normal ``si.n``.  ``on_escape(o, d, reflected)`` receives each
+    facet's geometric normal ``si.n``.  ``ior``: the glass's refractive index in air, or
+    ``ior(points, outward normals)`` -> Dr.Jit Float, the glass's index over that of the
+    medium beyond each hit facet (a cavity filled with something else than air).  ``on_escape(o, d, reflected)`` receives each
     wavefront's escaping photons (Dr.Jit arrays), ``reflected`` a Dr.Jit UInt32: 0 if
     the photon was never reflected, else where it was first reflected (a Fresnel
     ghost): ``place(points, outward normals)`` -> Dr.Jit UInt32 codes from 1, or 1
@@ -244,7 +248,7 @@ def propagate(mi, scene, o, d, ior: float, seed: int, max_bounces: int, on_escap
         p = _take(mi.Point3f, si.p, live)
         d_in = _take(mi.Vector3f, d, live)
         normal = _take(mi.Vector3f, si.n, live)
-        d = refract_or_reflect(mi, d_in, normal, ior, rng.next_float32())
+        d = refract_or_reflect(mi, d_in, normal, ior(p, normal) if callable(ior) else ior, rng.next_float32())
         # A reflected photon turns back to the side of the facet it came from.
         reflected = dr.gather(mi.UInt32, reflected, live)
         first = (dr.dot(d_in, normal) * dr.dot(d, normal) < 0) & (reflected == 0)
@@ -315,14 +319,14 @@ def _noise_sample(counts_by_parity: np.ndarray, traced_by_parity: list[int]) -> 
     return math.sqrt(na * nb) * (counts_by_parity[0] / na - counts_by_parity[1] / nb)
 
 
-def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float, ior: float,
+def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float, ior,
                  walls: list[Wall], shapes: list[tuple[int, int]], photons: int, seed: int,
                  max_bounces: int = 8, emitter=None, reflection_place=None, light_length_mm: float = 0.0,
                  kernel_moments=None) -> tuple[list[np.ndarray], dict]:
     """Trace about ``photons`` photons from the LED through the lens onto the walls.
 
     The LED is ``emit``'s (a point, a ball of ``light_radius_mm``, a filament of
-    ``light_length_mm``); ``emitter(mi, n, seed)`` -> Dr.Jit (origins, unit
+    ``light_length_mm``); ``ior`` is ``propagate``'s; ``emitter(mi, n, seed)`` -> Dr.Jit (origins, unit
     directions) of about ``n`` photons replaces it with another light, e.g. a panel's
     collimated beam.  ``kernel_moments`` (a ``sharpness.Moments``) receives where each
     photon that was never reflected left the lens and landed.

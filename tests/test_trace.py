@@ -111,6 +111,34 @@ def test_ghosts_split_by_where_they_were_first_reflected(plain_room):
         assert 0.2 < split["ghosts_by_place"][1][k].sum() / ghost.sum() < 0.8
 
 
+def test_a_cavity_filled_to_the_glasss_index_stops_reflecting(plain_room):
+    import drjit as dr
+
+    scene, light, walls, shapes = plain_room
+    mi = scene.mi
+
+    def facing_the_axis(p, n):
+        return p.x * n.x + p.y * n.y < 0
+
+    def filled(p, n):  # the bore holds a medium of the glass's index; air outside
+        return dr.select(facing_the_axis(p, n), mi.Float(1.0), mi.Float(1.49))
+
+    def code(p, n):
+        return dr.select(facing_the_axis(p, n), mi.UInt32(1), mi.UInt32(2))
+
+    images, info = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3, reflection_place=code)
+    same, _ = trace.render_walls(scene, light, 0.0, lambda p, n: mi.Float(1.49) + 0.0 * p.x, walls, shapes,
+                                 200_000, seed=3)
+    assert all(np.array_equal(a, b) for a, b in zip(images, same))  # a per-facet index of 1.49 is the float's
+    potted, split = trace.render_walls(scene, light, 0.0, filled, walls, shapes, 200_000, seed=3,
+                                       reflection_place=code)
+    for k in range(len(walls)):
+        # The bore reflected a fair part of the ghosts; filled, a grazing photon at most.
+        assert info["ghosts_by_place"][1][k].sum() > 0.2 * info["ghosts"][k].sum()
+        assert split["ghosts_by_place"].get(1, [np.zeros(1)] * len(walls))[k].sum() < 1e-3 * potted[k].sum()
+        assert 0.01 < split["ghosts_by_place"][2][k].sum() / potted[k].sum() < 0.1  # the outer surface's stay
+
+
 def test_stratified_directions_cover_the_sphere_evenly(mi):
     directions, count = trace.stratified_sphere(mi, 10_000, seed=5)
     d = trace.to_numpy(directions)

@@ -92,8 +92,8 @@ def verdict(build: Build, figures: dict, checks: list, sharper_led: dict | None 
     if r >= WELL_R and reference < DETAIL_SSIM:
         instead = (f" ({'LED=' + sharper_led['name']} would show it)" if sharper_led and sharper_led["enough"]
                    else "")
-        look, tone = (f"Projects your picture as well as the real {light} allows (r {r:.2f} or better on every "
-                      f"wall), but soft: it holds detail finer than this LED can show{instead}"), "warn"
+        look, tone = (f"Projects your picture with the real {light} (r {r:.2f} or better on every wall), but "
+                      f"soft: it holds detail finer than this LED can show{instead}"), "warn"
     elif r >= WELL_R:
         look, tone = f"Projects your picture well with the real {light} (r {r:.2f} or better on every wall)", "good"
     elif r >= RECOGNISABLE_R:
