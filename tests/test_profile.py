@@ -47,6 +47,14 @@ def test_bundled_led_profiles_load_with_a_part_and_a_board(name):
     assert (led.length_mm > 0) == (led.shape == "cylinder")
 
 
+def test_a_copied_led_profile_loads_from_its_path_as_the_readme_says(tmp_path):
+    bundled = profile.PROFILE_DIR / "led" / "mini1616.toml"
+    mine = tmp_path / "my_led.toml"
+    mine.write_text(bundled.read_text().replace("radius_mm = 0.8", "radius_mm = 1.0"))
+    led = profile.load_led(str(mine))
+    assert (led.name, led.radius_mm, led.path) == ("my_led", 1.0, str(mine))
+
+
 def test_the_default_led_is_the_one_lampfab_always_had():
     led = profile.load_led(profile.DEFAULT_LED)
     assert (led.shape, led.radius_mm, led.board_diameter_mm) == ("sphere", 1.5, 20.0)
