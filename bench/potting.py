@@ -31,7 +31,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from lampfab import artifacts, image, metrics, room, sharpness, trace, verify  # noqa: E402
+from lampfab import artifacts, image, metrics, verify  # noqa: E402
 
 SILICONE_IOR = 1.41  # clear potting silicones (e.g. Sylgard 184) measure n 1.40-1.43 near 589 nm
 EDGE_MM = 0.5  # a hit this close to the base's or the top's plane is on a flat face, not the cavity's
@@ -61,30 +61,15 @@ def cavity_ior(loaded: verify.Loaded, glass: float, filler: float):
     return ior
 
 
-def trace_lens(loaded: verify.Loaded, ior, photons: int, seed: int) -> dict:
-    """The point light's and the LED's renders through ``loaded`` with ``ior``
-    (``trace.propagate``'s), and the LED's kernels."""
-    design, walls = loaded.design, loaded.walls
-    shapes = [room.image_shape(w, 64) for w in walls]
-    z = loaded.vertices[:, 2]
-    moments = [sharpness.Moments(sharpness.Cells.for_photons(float(z.min()), float(z.max()), photons), len(walls))
-               for _ in range(2)]
-    light = np.asarray(design["light"]["position"], float)
-    renders = [trace.render_walls(loaded.scene, light, radius, ior, walls, shapes, photons, seed + k, 8,
-                                  light_length_mm=design["light"].get("length", 0.0) if radius else 0.0,
-                                  kernel_moments=m)
-               for k, (radius, m) in enumerate(zip((0.0, design["light"]["radius"]), moments))]
-    return {"point": renders[0], "led": renders[1], "kernels": sharpness.Kernels.of(*moments)}
-
-
-def figures(loaded: verify.Loaded, traced: dict) -> list[dict]:
-    """Per wall: blur, reflected share and scores of one ``trace_lens``."""
-    (point, _), (led, led_info) = traced["point"], traced["led"]
+def figures(loaded: verify.Loaded, ior, photons: int, seed: int) -> list[dict]:
+    """Per wall: the LED's blur, the reflected share and the scores, traced as verify
+    traces (``verify.render_both``) with ``ior`` (``trace.propagate``'s)."""
+    point, _, led, led_info, kernels = verify.render_both(loaded, 64, photons, seed, 8, ior)
     out = []
     for k, wall in enumerate(loaded.walls):
         target = image.letterbox(artifacts.read_linear_png16(loaded.base / loaded.design["walls"][k]["target"]),
                                  *led[k].shape)
-        ref = verify._led_reference(traced["kernels"], k, wall, target, point[k], led[k], led_info["ghosts"][k],
+        ref = verify._led_reference(kernels, k, wall, target, point[k], led[k], led_info["ghosts"][k],
                                     led_info["direct_noise"][k], {})
         out.append({"wall": wall.name, "blur": ref["led_blur_mm"],
                     "reflected": float(led_info["ghosts"][k].sum() / led[k].sum()),
@@ -107,7 +92,7 @@ def main() -> None:
               "| ... with this lens's reflections and noise | LED r / SSIM (the air design) |")
         print("|---|---|---|---|---|---|---|")
         for name, filler in (("air", 1.0), ("silicone", args.silicone_ior)):
-            for f in figures(loaded, trace_lens(loaded, cavity_ior(loaded, glass, filler), int(args.photons), 7)):
+            for f in figures(loaded, cavity_ior(loaded, glass, filler), int(args.photons), 7):
                 print(f"| {f['wall']} | {name} | {f['blur']['horizontal']:.0f} x {f['blur']['vertical']:.0f} "
                       f"| {f['reflected']:.1%} | {f['reference_ssim']:.3f} | {f['ceiling']:.3f} "
                       f"| {f['r']:.3f} / {f['ssim']:.3f} |")

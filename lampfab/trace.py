@@ -219,12 +219,12 @@ def propagate(mi, scene, o, d, ior, seed: int, max_bounces: int, on_escape, plac
     ``scene`` holds one closed solid with outward normals; refraction uses the hit
     facet's geometric normal ``si.n``.  ``ior``: the glass's refractive index in air, or
     ``ior(points, outward normals)`` -> Dr.Jit Float, the glass's index over that of the
-    medium beyond each hit facet (a cavity filled with something else than air).  ``on_escape(o, d, reflected)`` receives each
-    wavefront's escaping photons (Dr.Jit arrays), ``reflected`` a Dr.Jit UInt32: 0 if
-    the photon was never reflected, else where it was first reflected (a Fresnel
-    ghost): ``place(points, outward normals)`` -> Dr.Jit UInt32 codes from 1, or 1
-    without ``place``.  Returns how many are still inside after ``max_bounces``
-    interfaces.
+    medium beyond each hit facet (a cavity filled with something else than air).
+    ``on_escape(o, d, reflected)`` receives each wavefront's escaping photons (Dr.Jit
+    arrays), ``reflected`` a Dr.Jit UInt32: 0 if the photon was never reflected, else
+    where it was first reflected (a Fresnel ghost): ``place(points, outward normals)``
+    -> Dr.Jit UInt32 codes from 1, or 1 without ``place``.  Returns how many are still
+    inside after ``max_bounces`` interfaces.
     """
     import drjit as dr
 
@@ -326,8 +326,8 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
     """Trace about ``photons`` photons from the LED through the lens onto the walls.
 
     The LED is ``emit``'s (a point, a ball of ``light_radius_mm``, a filament of
-    ``light_length_mm``); ``ior`` is ``propagate``'s; ``emitter(mi, n, seed)`` -> Dr.Jit (origins, unit
-    directions) of about ``n`` photons replaces it with another light, e.g. a panel's
+    ``light_length_mm``); ``ior`` is ``propagate``'s; ``emitter(mi, n, seed)`` -> Dr.Jit
+    (origins, unit directions) of about ``n`` photons replaces it with another light, e.g. a panel's
     collimated beam.  ``kernel_moments`` (a ``sharpness.Moments``) receives where each
     photon that was never reflected left the lens and landed.
 

@@ -58,14 +58,15 @@ def load(design_path) -> Loaded:
 
 def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bounces: int,
                   light_radius_mm: float | None = None, reflection_place=None,
-                  kernel_moments=None) -> tuple[list[np.ndarray], dict]:
+                  kernel_moments=None, ior=None) -> tuple[list[np.ndarray], dict]:
     """Trace the design's STL onto its walls (``loaded.walls``).  Returns (per-wall flux
     images, ``room.image_shape(wall, image_px)`` float64, share of the emitted light per
     pixel; info as ``trace.render_walls``'s).
 
     ``light_radius_mm`` None: the design's own light (its LED, a beam with its spread); a
     number: a ball of that radius (0: the point light; a beam: parallel).
-    ``reflection_place``, ``kernel_moments``: see ``trace.render_walls``."""
+    ``reflection_place``, ``kernel_moments``, ``ior``: see ``trace.render_walls``; ``ior``
+    None: the design's material in air."""
     from . import trace
 
     design, walls = loaded.design, loaded.walls
@@ -78,7 +79,8 @@ def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bo
 
         emitter = emitter_from_json(design["light"], divergence=light_radius_mm is None)
     images, info = trace.render_walls(loaded.scene, np.asarray(design["light"]["position"], float), radius,
-                                      float(design["material"]["ior"]), walls, shapes, photons, seed,
+                                      float(design["material"]["ior"]) if ior is None else ior, walls, shapes,
+                                      photons, seed,
                                       max_bounces, emitter, reflection_place, length, kernel_moments)
     return images, info
 
@@ -117,21 +119,15 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
     blur).  With ``mitsuba_photons`` Mitsuba's light tracer renders the lens too
     (``mitsuba_reference``): ``mitsuba_pearson`` (LED) and ``mitsuba_point_pearson``.
     """
-    from . import image, sharpness
+    from . import image
 
     out_dir = Path(out_dir)
     loaded = load(design_path)
     design = loaded.design
     walls = loaded.walls
-    led_light = design["light"].get("type") != "collimated"
-    moments = [sharpness.Moments(sharpness.Cells.for_photons(*_height_range(loaded), photons), len(walls))
-               for _ in range(2)] \
-        if led_light else [None, None]
-    point, info = render_design(loaded, image_px, photons, seed, max_bounces, 0.0, kernel_moments=moments[0])
-    led, led_info = render_design(loaded, image_px, photons, seed + 1, max_bounces, kernel_moments=moments[1])
-    kernels = sharpness.Kernels.of(*moments) if led_light else None
+    point, info, led, led_info, kernels = render_both(loaded, image_px, photons, seed, max_bounces)
     mitsuba = _mitsuba(loaded, [p.shape for p in point], mitsuba_photons, seed + 2) \
-        if led_light and mitsuba_photons else None
+        if kernels is not None and mitsuba_photons else None
     figures = {"walls": {}, "lost_share": info["lost"], "trapped_share": info["trapped"],
                "led_radius_mm": design["light"]["radius"], "photons": photons,
                "real_light": _real_light(design["light"])}
@@ -171,6 +167,23 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
     if mitsuba is not None:
         figures["mitsuba"] = {"photons_per_wall": mitsuba["photons"], "seconds": mitsuba["seconds"]}
     return figures
+
+
+def render_both(loaded: Loaded, image_px: int, photons: int, seed: int, max_bounces: int, ior=None):
+    """The point light's render (``seed``) and the design's own light's (``seed + 1``),
+    as ``render_design`` makes them, with the LED's kernels measured on both
+    (``sharpness.Kernels``; None for a panel's beam).  Returns (point images, its info,
+    light images, its info, kernels)."""
+    from . import sharpness
+
+    led_light = loaded.design["light"].get("type") != "collimated"
+    moments = [sharpness.Moments(sharpness.Cells.for_photons(*_height_range(loaded), photons), len(loaded.walls))
+               for _ in range(2)] if led_light else [None, None]
+    point, info = render_design(loaded, image_px, photons, seed, max_bounces, 0.0, kernel_moments=moments[0],
+                                ior=ior)
+    led, led_info = render_design(loaded, image_px, photons, seed + 1, max_bounces, kernel_moments=moments[1],
+                                  ior=ior)
+    return point, info, led, led_info, sharpness.Kernels.of(*moments) if led_light else None
 
 
 def _led_reference(kernels, k: int, wall: room.Wall, target: np.ndarray, point: np.ndarray, led: np.ndarray,

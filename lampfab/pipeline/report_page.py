@@ -90,8 +90,7 @@ def verdict(build: Build, figures: dict, checks: list, sharper_led: dict | None 
     # holds detail no design can show with this LED, however well its r reads.
     reference = min((w["led_reference_ssim"] for w in walls.values() if "led_reference_ssim" in w), default=1.0)
     if r >= WELL_R and reference < DETAIL_SSIM:
-        instead = (f" ({'LED=' + sharper_led['name']} would show it)" if sharper_led and sharper_led["enough"]
-                   else "")
+        instead = f" (LED={sharper_led['name']} would show it)" if sharper_led and sharper_led["enough"] else ""
         look, tone = (f"Projects your picture with the real {light} (r {r:.2f} or better on every wall), but "
                       f"soft: it holds detail finer than this LED can show{instead}"), "warn"
     elif r >= WELL_R:
