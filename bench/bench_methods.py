@@ -59,12 +59,13 @@ def measure(build, inner, runner, heights, targets) -> dict:
     return out
 
 
-def run_method(name, build, inner, targets, budgets, start_heights, opt, elapsed0) -> list[dict]:
+def run_method(name, build, inner, targets, budgets, start_heights, opt, elapsed0, limits=None) -> list[dict]:
     """Optimize until each budget (seconds of computing since the method started,
-    ``elapsed0`` of init included); stops early once the schedule is done."""
+    ``elapsed0`` of init included), under ``limits`` (default: the profiles'); stops
+    early once the schedule is done."""
     rows = []
     state = optimize.State(start_heights.copy(), 0, 0)
-    runner = build.optimizer(opt, inner, build.targets(opt.sensor_px))
+    runner = build.optimizer(opt, inner, build.targets(opt.sensor_px), limits)
     spent = elapsed0
     last = None
     for budget in budgets:
@@ -131,7 +132,7 @@ def main() -> None:
         # happens afterwards, off the clock), then the profile's splat schedule.
         passes = []
         t0 = time.time()
-        heights, _ = build.transport_design(d.optimize, inner, log=lambda m: None,
+        heights, init_figures = build.transport_design(d.optimize, inner, log=lambda m: None,
                                             on_pass=lambda h: passes.append((time.time() - t0, h.copy())))
         init_s = time.time() - t0
         splat_opt = dataclasses.replace(d.optimize, preview_every=10**9, checkpoint_every=10**9)
@@ -147,7 +148,7 @@ def main() -> None:
         print(f"{'transport':9s} {init_s:6.1f} s  {0:5d} steps  {_figures(init_row)}  (before any gradient step)",
               flush=True)
         splat_rows = run_method("lampfab", build, inner, targets, [b for b in budgets if b >= init_s], heights,
-                                splat_opt, init_s)
+                                splat_opt, init_s, build.limits.with_slope(init_figures["slope_limit_deg"]))
 
         led = f"{build.led.name} ({build.led.shape}, {build.led.radius_mm:g} mm radius)"
     report(args, budgets, ptracer_rows, pass_rows + [init_row], splat_rows, steps, d.verify.photons, led)

@@ -13,6 +13,7 @@ offsets from the cylinder.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -67,16 +68,30 @@ class Limits:
     """What the outer surface may do: ``max_offset_mm`` from the plain cylinder either
     way, ``max_slope_deg`` tilt against the radial direction, ``max_overhang_deg`` past
     vertical facing down (None: no overhang rule), hollows no tighter than
-    ``tool_radius_mm`` (0: no tool)."""
+    ``tool_radius_mm`` (0: no tool).  ``steepest_slope_deg``: how far a design whose
+    light cannot land under ``max_slope_deg`` may steepen its slopes (None: no further)."""
     max_offset_mm: float
     max_slope_deg: float
     max_overhang_deg: float | None = None
     tool_radius_mm: float = 0.0
+    steepest_slope_deg: float | None = None
 
     @staticmethod
     def of(design: Design, fab: Fabrication) -> "Limits":
-        """The lamp's limits from its design and fabrication profiles."""
-        return Limits(design.lens.max_offset_mm, fab.max_slope_deg, overhang_limit_deg(fab), fab.tool_radius_mm)
+        """The lamp's limits from its design and fabrication profiles: slopes under the
+        profile's preferred slope, steepened (``steepened``) up to its ``max_slope_deg``."""
+        preferred = min(fab.preferred_slope_deg, fab.max_slope_deg)
+        steepest = fab.max_slope_deg if fab.max_slope_deg > preferred else None
+        return Limits(design.lens.max_offset_mm, preferred, overhang_limit_deg(fab), fab.tool_radius_mm, steepest)
+
+    def steepened(self) -> "Limits":
+        """These limits with slopes up to ``steepest_slope_deg``."""
+        return self.with_slope(self.steepest_slope_deg)
+
+    def with_slope(self, max_slope_deg: float) -> "Limits":
+        """These limits with slopes up to ``max_slope_deg`` and no further (the limit a
+        first design chose, which the refinement keeps)."""
+        return dataclasses.replace(self, max_slope_deg=max_slope_deg, steepest_slope_deg=None)
 
     def project(self, cyl: surface.Cylinder, heights: np.ndarray) -> np.ndarray:
         """(nu, nv) mm ``heights`` within the offset bound and ``limit_shape``'s limits."""

@@ -153,6 +153,9 @@ class Fabrication:
     ior: float = _spec(1.49, 1.0, 3.0, doc="refractive index at ~589 nm")
     min_wall_mm: float = _spec(1.5, 0.1, 50.0, doc="thinnest wall between inner and outer surface")
     max_slope_deg: float = _spec(60.0, 1.0, 90.0, doc="steepest outer slope against the radial direction")
+    preferred_slope_deg: float = _spec(90.0, 1.0, 90.0, doc="the design keeps its slopes under this (and "
+                                       "max_slope_deg) unless its light cannot land otherwise; then it steepens "
+                                       "them up to max_slope_deg")
     tool_radius_mm: float = _spec(0.0, 0.0, 50.0, doc="ball-end radius (0: not milled)")
     setups: int = _spec(0, 0, 12, doc="3-axis milling: indexed setups about the lamp axis (0: not indexed)")
     max_tool_angle_deg: float = _spec(90.0, 1.0, 90.0, doc="3-axis: steepest surface against the tool axis")

@@ -85,6 +85,18 @@ def test_the_leds_board_widens_the_bore_never_narrows_it():
     assert profile.with_bore_for(cnc, mini).mount_radius_mm == 12.5   # the mill's counterbore stays
 
 
+def test_a_print_prefers_gentle_slopes_and_may_steepen_a_mill_may_not():
+    from lampfab.limits import Limits
+
+    design = profile.load_design("default")
+    sla = Limits.of(design, profile.load_fabrication("sla_resin"))
+    assert (sla.max_slope_deg, sla.steepest_slope_deg) == (60.0, 68.0)
+    assert sla.steepened().max_slope_deg == 68.0 and sla.steepened().steepest_slope_deg is None
+    assert sla.with_slope(64.0) == Limits(20.0, 64.0, 45.0, 0.0, None)
+    cnc = Limits.of(design, profile.load_fabrication("acrylic_cnc4"))
+    assert (cnc.max_slope_deg, cnc.steepest_slope_deg) == (60.0, None)
+
+
 def test_designing_for_the_led_needs_the_splat_refinement(tmp_path):
     p = tmp_path / "p.toml"
     p.write_text("[optimize]\nmethod = 'ptracer'\nloss = 'si_mse'\ndesign_light = 'led'\n")

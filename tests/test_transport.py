@@ -243,6 +243,35 @@ def test_the_passes_keep_the_lens_whose_light_lands_closest(tiny_design, inner_l
     np.testing.assert_allclose(heights, 4.0)                   # the fourth fit's lens: each fit adds 1 mm
 
 
+@pytest.mark.parametrize("preferred_mm, steep_mm, steepest, chosen", [
+    (500.0, 300.0, 45.0, 45.0),   # the first fit lands the light far off, the steeper one closer
+    (500.0, 480.0, 45.0, 30.0),   # the steeper one barely closer: the gentle slopes stay
+    (200.0, 50.0, 45.0, 30.0),    # within two pixels (2 x 112.5 mm): not tried
+    (500.0, 300.0, None, 30.0),   # a profile that cannot steepen
+])
+def test_the_design_steepens_its_slopes_only_where_its_light_cannot_land(tiny_design, inner_layer, monkeypatch,
+                                                                        preferred_mm, steep_mm, steepest, chosen):
+    """Scripted fits: which first fits are made, and the limit every later fit runs under."""
+    walls, targets, opt = _disc_lamp(tiny_design)      # 112.5 mm pixels; no coarse grid; 3 passes of 2 steps
+    limits_seen = []
+
+    def fit(self, heights, goals, iterations, on_step=None, min_gain=0.0):
+        limit = round(float(np.degrees(np.arctan(self.tan_limit))) + raymap.SLOPE_MARGIN_DEG, 6)
+        limits_seen.append(limit)
+        return heights, {"rms_landing_error_mm": preferred_mm if limit == 30.0 else steep_mm, "max_tilt_deg": 0.0,
+                         "steps_taken": 2}
+
+    monkeypatch.setattr(raymap.RayMap, "fit", fit)
+    limits_given = Limits(20.0, 30.0, steepest_slope_deg=steepest)
+    _, figures = transport.design(surface.Cylinder(45.0, 90.0, creased=True), walls, targets, *inner_layer,
+                                  room.light_position(tiny_design), 1.5, limits_given, opt, log=lambda m: None)
+    tried = preferred_mm > 2 * 112.5 and steepest is not None
+    assert limits_seen == [30.0] + [45.0] * tried + [chosen] * 3
+    assert figures["slope_limit_deg"] == chosen
+    assert figures["first_fit_rms_landing_error_mm"] == ({"30": preferred_mm, "45": steep_mm} if tried
+                                                          else {"30": preferred_mm})
+
+
 @pytest.mark.slow
 def test_transport_alone_projects_the_target(tiny_design, inner_layer):
     """The whole design on a tiny grid: most of the light lands on the bright disc."""

@@ -52,8 +52,9 @@ class Panel(LensKind):
         heights, figs = transport.design(
             shape(build), build.walls[0], build.targets(min(64, opt.grid_u))[0], build.fab.ior, _grid(build),
             opt.transport_rounds, opt.transport_corrections, opt.smoothness, build.design.panel.max_relief_mm,
-            build.fab.max_slope_deg, log=progress.log)
-        return heights, {"method": "transport (collimated panel)", **figs}
+            build.limits.max_slope_deg, log=progress.log)
+        return heights, {"method": "transport (collimated panel)", "slope_limit_deg": build.limits.max_slope_deg,
+                         **figs}
 
     def solid(self, build, heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
         """The panel's closed mesh (relief, sides, back face), checked closed and one body."""

@@ -125,14 +125,15 @@ class Build:
         return transport.design(self.cylinder, self.walls, self.targets(opt.sensor_px), *inner, self.light,
                                 self.fab.ior, self.limits, opt, **progress)
 
-    def optimizer(self, opt, inner, targets):
+    def optimizer(self, opt, inner, targets, limits=None):
         """The refinement ``opt.method`` names, for this build's lens, room, light and
-        limits, against ``targets`` (one image per wall)."""
+        ``limits`` (default: the profiles' ``limits``), against ``targets`` (one image per
+        wall)."""
         from .. import optimize
         from ..splat import SplatOptimizer
 
         method = {"ptracer": optimize.PtracerOptimizer, "splat": SplatOptimizer}[opt.method]
-        return method(self.cylinder, *inner, self.light, self.fab.ior, self.walls, targets, opt, self.limits,
+        return method(self.cylinder, *inner, self.light, self.fab.ior, self.walls, targets, opt, limits or self.limits,
                       self.led if opt.design_light == "led" else None)
 
     # -- where each artifact lives ----------------------------------------------------------
@@ -215,8 +216,17 @@ class Build:
                                f"Inf; re-run init (make init), and report it if it happens again")
         return heights
 
-    def save_init(self, heights: np.ndarray) -> None:
-        artifacts.write_npz(self.init_file, heights=heights)
+    def save_init(self, heights: np.ndarray, slope_limit_deg: float) -> None:
+        """The first design and the slope limit it chose (``limits.Limits.steepened``)."""
+        artifacts.write_npz(self.init_file, heights=heights, slope_limit_deg=slope_limit_deg)
+
+    def design_limits(self):
+        """``limits`` with the slopes the first design (init.npz) chose, which the
+        refinement keeps."""
+        saved = artifacts.read_npz(self.init_file)
+        if "slope_limit_deg" not in saved:
+            raise LampfabError(f"{self.init_file}: made by an older lampfab (no slope limit); re-run init")
+        return self.limits.with_slope(float(saved["slope_limit_deg"]))
 
     def heights(self) -> np.ndarray:
         """The optimized outer layer: (nu, nv) float64 mm offsets (heightmap.npz)."""

@@ -39,7 +39,8 @@ class LensKind(ABC):
 
     @abstractmethod
     def first_design(self, build) -> tuple[np.ndarray, dict]:
-        """init: ((nu, nv) mm heights, figures for init.json, "method" first)."""
+        """init: ((nu, nv) mm heights, figures for init.json, "method" first, with the
+        ``slope_limit_deg`` it designed under)."""
 
     @abstractmethod
     def solid(self, build, heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -124,7 +125,7 @@ class Lamp(LensKind):
         opt = build.design.optimize
         grid = (opt.grid_u, opt.grid_v)
         if opt.init == "cylinder":
-            return np.zeros(grid), {"method": "cylinder"}
+            return np.zeros(grid), {"method": "cylinder", "slope_limit_deg": build.limits.max_slope_deg}
         bar = progress.steps_bar(transport.fit_steps(grid, opt.transport_rounds, opt.transport_corrections), "init")
 
         def step(figures):

@@ -219,6 +219,12 @@ def _groups(build: Build, figures: dict, plan: dict) -> dict:
                      ("STEP's B-spline from the heightmap", f"within {e['bspline_deviation_mm'] * 1000:.2g} µm")]
     fab += [("Material", f"{build.fab.material} (n = {build.fab.ior})"),
             ("Bore through the base", f"{2 * build.fab.mount_radius_mm:g} mm across")]
+    init = (build.stage_report("init") or {}).get("figures", {})
+    if "slope_limit_deg" in init:
+        limit, preferred = init["slope_limit_deg"], build.limits.max_slope_deg
+        fab.append(("Slopes of the outer surface", f"up to {limit:g}°" + (
+            f", past the {preferred:g}° the profile prefers: the light could not land under it"
+            if limit > preferred else "")))
     if "tolerance" in figures:
         t = figures["tolerance"]
         fab.append(("Polishing allowance", f"{'at least ' if t['allowance_at_least'] else ''}"

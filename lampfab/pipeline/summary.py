@@ -34,8 +34,9 @@ def _key_figure(stage: str, figs: dict) -> str:
                 line += f" ({len(sharp['warnings'])} warning{'s' * (len(sharp['warnings']) > 1)}: see plan.json)"
         return line
     if stage == "init":
-        tilt = figs.get("max_tilt_deg")
-        return figs["method"] + (f", max tilt {tilt:.1f}°" if tilt is not None else "")
+        tilt, limit = figs.get("max_tilt_deg"), figs.get("slope_limit_deg")
+        return (figs["method"] + (f", max tilt {tilt:.1f}°" if tilt is not None else "")
+                + (f" (slopes up to {limit:g}°)" if limit is not None else ""))
     if stage == "optimize":
         loss = figs.get("final_loss")
         return f"{figs['steps']} steps" + (f", final loss {loss:.3g}" if loss is not None else "")

@@ -395,6 +395,12 @@ def test_nan_in_the_first_lens_is_refused(tmp_path, tiny_profile):
     assert files_under(tmp_path) == [tmp_path / "init.npz"]
 
 
+def test_a_first_lens_without_its_slope_limit_is_refused(tmp_path, tiny_profile):
+    np.savez(tmp_path / "init.npz", heights=np.zeros((32, 9)))
+    run = cli("optimize", "--out", tmp_path, "--profile", tiny_profile)
+    assert_one_clear_line(run, "init.npz", "no slope limit", "re-run init")
+
+
 # -- reproducibility ------------------------------------------------------------------------
 def test_splat_gradient_is_bit_reproducible(mi, tiny_design, inner_layer):
     from lampfab import splat

@@ -11,6 +11,6 @@ def init(build: Build) -> dict:
     report = build.begin("init", build.target_paths())
     heights, figures = build.kind.first_design(build)
     report.figure(**figures)
-    build.save_init(heights)
+    build.save_init(heights, figures["slope_limit_deg"])
     report.write(build.report_file("init"))
     return report.data

@@ -24,8 +24,8 @@ def optimize(build: Build) -> dict:
 
     d, opt = build.design, build.design.optimize
     report = build.begin("optimize", {"init": build.init_file, **build.target_paths()})
-    init_heights = build.init_heights()
-    optimizer = build.optimizer(opt, build.inner(), build.targets(opt.sensor_px))
+    init_heights, limits = build.init_heights(), build.design_limits()
+    optimizer = build.optimizer(opt, build.inner(), build.targets(opt.sensor_px), limits)
     checkpoint = build.checkpoint_file
     for written in (checkpoint, build.heightmap_file):
         artifacts.remove_stale_temps(written)
