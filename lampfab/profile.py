@@ -288,6 +288,9 @@ def load_fabrication(name_or_path: str) -> Fabrication:
     if fab.process == "cnc3" and fab.setups < 2:
         raise LampfabError(f"{path}: setups {fab.setups}: 3-axis milling (process cnc3) needs at least 2 setups "
                            f"(the part is turned about the lamp axis between them)")
+    if "preferred_slope_deg" in data and fab.preferred_slope_deg > fab.max_slope_deg:
+        raise LampfabError(f"{path}: preferred_slope_deg {fab.preferred_slope_deg:g} is steeper than max_slope_deg "
+                           f"{fab.max_slope_deg:g}; allowed: 1 to max_slope_deg")
     return dataclasses.replace(fab, path=str(path))
 
 

@@ -97,6 +97,20 @@ def test_a_print_prefers_gentle_slopes_and_may_steepen_a_mill_may_not():
     assert (cnc.max_slope_deg, cnc.steepest_slope_deg) == (60.0, None)
 
 
+def test_a_preferred_slope_steeper_than_the_limit_is_refused_and_an_unset_one_is_the_limit(tmp_path):
+    from lampfab.limits import Limits
+
+    bundled = (profile.PROFILE_DIR / "fab" / "sla_resin.toml").read_text()
+    steeper = tmp_path / "steeper.toml"
+    steeper.write_text(bundled.replace("preferred_slope_deg = 60.0", "preferred_slope_deg = 70.0"))
+    with pytest.raises(LampfabError, match=r"steeper\.toml: preferred_slope_deg 70 is steeper than max_slope_deg 68"):
+        profile.load_fabrication(str(steeper))
+    unset = tmp_path / "unset.toml"
+    unset.write_text(bundled.replace("preferred_slope_deg = 60.0\n", ""))
+    limits = Limits.of(profile.load_design("default"), profile.load_fabrication(str(unset)))
+    assert (limits.max_slope_deg, limits.steepest_slope_deg) == (68.0, None)
+
+
 def test_designing_for_the_led_needs_the_splat_refinement(tmp_path):
     p = tmp_path / "p.toml"
     p.write_text("[optimize]\nmethod = 'ptracer'\nloss = 'si_mse'\ndesign_light = 'led'\n")
