@@ -96,6 +96,10 @@ def test_text_lamp_end_to_end(text_lamp):
     for line, stage in zip(lines, ["prepare", "plan", "init", "optimize", "solid", "fabcheck", "export", "verify"]):
         assert re.match(rf"{stage}\s+\d+\.\d s  \S", line), line
     assert lines[-1].startswith("total") and "report.html" in lines[-1]
+    # The slope limit init chose is on its line and in the report's fabrication table.
+    slope = json.loads((out / "init.json").read_text())["figures"]["slope_limit_deg"]
+    assert slope in (60.0, 68.0) and f"(slopes up to {slope:g}°)" in lines[2], lines[2]
+    assert re.search(rf"Slopes of the outer surface</th><td>up to {slope:g}°", (out / "report.html").read_text())
     # The tiny profile's lens projects the letters at r 0.80-0.82.
     assert min(_wall_pearsons(out)) > 0.7
     # verify read every wall's words back (whether a tiny lamp's read is test_ocr's
