@@ -204,9 +204,12 @@ class Build:
             artifacts.write_linear_png16(self.target_file(name), img)
             artifacts.write_png(self.target_preview(name), img, normalize=False)
 
-    def init_heights(self) -> np.ndarray:
-        """The first design (init.npz): (nu, nv) mm, checked against the profile's grid."""
-        heights = artifacts.read_npz(self.init_file)["heights"]
+    def first_lens(self):
+        """The first design (init.npz): (nu, nv) mm heights, checked against the profile's
+        grid, and ``limits`` with the slopes it chose (``limits.Limits.steepened``), which
+        the refinement keeps."""
+        saved = artifacts.read_npz(self.init_file)
+        heights = saved["heights"]
         opt = self.design.optimize
         if heights.shape != (opt.grid_u, opt.grid_v):
             raise LampfabError(f"{self.init_file}: grid {heights.shape} is not the profile's "
@@ -214,19 +217,13 @@ class Build:
         if not np.all(np.isfinite(heights)):
             raise LampfabError(f"{self.init_file}: {int(np.sum(~np.isfinite(heights)))} heights are NaN or "
                                f"Inf; re-run init (make init), and report it if it happens again")
-        return heights
-
-    def save_init(self, heights: np.ndarray, slope_limit_deg: float) -> None:
-        """The first design and the slope limit it chose (``limits.Limits.steepened``)."""
-        artifacts.write_npz(self.init_file, heights=heights, slope_limit_deg=slope_limit_deg)
-
-    def design_limits(self):
-        """``limits`` with the slopes the first design (init.npz) chose, which the
-        refinement keeps."""
-        saved = artifacts.read_npz(self.init_file)
         if "slope_limit_deg" not in saved:
             raise LampfabError(f"{self.init_file}: made by an older lampfab (no slope limit); re-run init")
-        return self.limits.with_slope(float(saved["slope_limit_deg"]))
+        return heights, self.limits.with_slope(float(saved["slope_limit_deg"]))
+
+    def save_init(self, heights: np.ndarray, slope_limit_deg: float) -> None:
+        """The first design and the slope limit it chose."""
+        artifacts.write_npz(self.init_file, heights=heights, slope_limit_deg=slope_limit_deg)
 
     def heights(self) -> np.ndarray:
         """The optimized outer layer: (nu, nv) float64 mm offsets (heightmap.npz)."""

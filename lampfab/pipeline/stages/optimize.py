@@ -24,7 +24,7 @@ def optimize(build: Build) -> dict:
 
     d, opt = build.design, build.design.optimize
     report = build.begin("optimize", {"init": build.init_file, **build.target_paths()})
-    init_heights, limits = build.init_heights(), build.design_limits()
+    init_heights, limits = build.first_lens()
     optimizer = build.optimizer(opt, build.inner(), build.targets(opt.sensor_px), limits)
     checkpoint = build.checkpoint_file
     for written in (checkpoint, build.heightmap_file):
@@ -89,7 +89,7 @@ def optimize(build: Build) -> dict:
 def _carry_over(build: Build) -> dict:
     """No refinement: the first design is the lens (a panel's profile allows no steps)."""
     report = build.begin("optimize", {"init": build.init_file})
-    heights = build.init_heights()
+    heights, _ = build.first_lens()
     build.save_heights(heights)
     report.figure(steps=0, final_loss=None, note="a panel is designed by transport alone",
                   offset_min_mm=float(heights.min()), offset_max_mm=float(heights.max()))
