@@ -2,7 +2,7 @@
 """Regenerate every result picture and table of README.md, docs/ and bench/RESULTS.md
 from the current code, in one run.
 
-    .venv/bin/python examples/results.py             # every case: about an hour on 2 cores
+    .venv/bin/python examples/results.py             # every case: about 1.5 hours on 2 cores
     .venv/bin/python examples/results.py apple text  # only these cases
     .venv/bin/python examples/results.py --verify-only  # verify again on every build there is
 

@@ -164,8 +164,9 @@ class Optimizer:
         self.led = led
         self._scene_grid = None
 
-    def gradient(self, heights: np.ndarray, views: list[int], seed: int) -> tuple[float, np.ndarray]:
-        """Loss over ``views`` and its gradient on the full-resolution nodes (nu, nv)."""
+    def gradient(self, heights: np.ndarray, views: list[int], seed: int, level: int = -1) -> tuple[float, np.ndarray]:
+        """Loss over ``views`` and its gradient on the full-resolution nodes (nu, nv), for a
+        step of ``level`` (-1: the finest)."""
         raise NotImplementedError
 
     def render(self, heights: np.ndarray, view: int, seed: int) -> np.ndarray:
@@ -257,7 +258,8 @@ class Optimizer:
                 t0 = time.time()
                 views = losses.views_for_step(opt.schedule, state.step, len(self.walls))
                 key = views[0] if len(views) == 1 else -1
-                loss, grad_full = self.gradient(state.heights, views, seed=opt.seed * 100_003 + state.step * 17)
+                loss, grad_full = self.gradient(state.heights, views, seed=opt.seed * 100_003 + state.step * 17,
+                                                level=level)
                 limits = self.limits
                 penalty, penalty_grad = surface.slope_penalty(
                     self.cyl, state.heights, limits.max_slope_deg - PENALTY_MARGIN_DEG,
@@ -397,8 +399,9 @@ class PtracerOptimizer(Optimizer):
         img = mi.render(self.scene, self.params, sensor=view, spp=spp or self.opt.spp, seed=seed)
         return np.array(img, dtype=np.float64)[..., 0]
 
-    def gradient(self, heights: np.ndarray, views: list[int], seed: int) -> tuple[float, np.ndarray]:
-        """Loss over ``views`` and its gradient on the heightmap nodes (nu, nv)."""
+    def gradient(self, heights: np.ndarray, views: list[int], seed: int, level: int = -1) -> tuple[float, np.ndarray]:
+        """Loss over ``views`` and its gradient on the heightmap nodes (nu, nv); every
+        level renders ``spp`` samples per pixel."""
         import drjit as dr
 
         mi = scene.mitsuba()

@@ -92,6 +92,8 @@ class Optimize:
                                   "emitter, whose blurred pictures the walls really get (splat only)")
     splat_photons: int = _spec(1_000_000, 1000, 100_000_000, doc="photons per step (splat), one per cell of an "
                                                                      "even grid of directions: rounded down to fill it")
+    fine_level_photons: float = _spec(1.0, 0.1, 16.0, doc="photons per step of the finer levels, times "
+                                                           "splat_photons (splat)")
     tessellation: int = _spec(4, 1, 16, doc="mesh vertices per heightmap cell edge (the STL uses the same)")
     transport_rounds: int = _spec(4, 1, 20, doc="fitting steps per transport pass (a panel: position/normal rounds)")
     transport_photons: int = _spec(500_000, 10_000, 100_000_000, doc="photons the transport design traces")
@@ -333,6 +335,9 @@ def _check_design(d: Design, path: Path) -> None:
     if opt.design_light == "led" and opt.method != "splat":
         raise LampfabError(f"{path}: [optimize] design_light \"led\" needs method \"splat\" (the {opt.method} "
                            f"method designs for the point light)")
+    if opt.fine_level_photons != 1.0 and opt.method != "splat":
+        raise LampfabError(f"{path}: [optimize] fine_level_photons needs method \"splat\" (the {opt.method} "
+                           f"method renders spp samples per pixel on every level)")
     if opt.backtrack and opt.schedule != "joint":
         raise LampfabError(f"{path}: [optimize] backtrack needs schedule \"joint\" (with one view per step, "
                            f"one step's loss does not compare with the next)")

@@ -47,11 +47,13 @@ def in_flight(stage: str, design: Design) -> tuple[int, str]:
         return opt.transport_photons if opt.init == "transport" else 0, "[optimize] transport_photons"
     if stage == "optimize":
         if opt.method == "splat":
-            from .splat import CAVITY_REFLECTIONS_EVERY
+            from .splat import CAVITY_REFLECTIONS_EVERY, photons_per_step
 
             # into_glass follows every k-th photon across the cavity, the first included.
-            return (opt.splat_photons + -(-opt.splat_photons // CAVITY_REFLECTIONS_EVERY),
-                    f"[optimize] splat_photons (1 in {CAVITY_REFLECTIONS_EVERY} also traced across the cavity)")
+            most = max(photons_per_step(opt, level) for level in range(opt.levels))
+            return (most + -(-most // CAVITY_REFLECTIONS_EVERY),
+                    f"[optimize] splat_photons, fine_level_photons (1 in {CAVITY_REFLECTIONS_EVERY} also traced "
+                    f"across the cavity)")
         views = len(design.room.walls) if opt.schedule == "joint" else 1
         return opt.spp * opt.sensor_px**2 * views, "[optimize] spp, sensor_px"
     if stage == "verify":

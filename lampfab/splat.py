@@ -39,6 +39,19 @@ SUPERSAMPLE = 4
 CAVITY_REFLECTIONS_EVERY = 4
 
 
+def photons_per_step(opt, level: int) -> int:
+    """Photons a step of ``level`` (0: the coarsest, -1: the finest) traces:
+    ``splat_photons``, times ``fine_level_photons`` above the coarsest level.
+
+    The coarse level sets where the light goes and its grid averages the photons'
+    noise over many of them; a fine node feels few, so each fine step writes their
+    noise into the surface as ripple, which SSIM counts on flat areas and as haze on
+    black.  Twice the photons on the fine level only lifted the silhouettes as much as
+    twice on both levels, at about half the extra time (bench/RESULTS.md)."""
+    finer = opt.levels > 1 and level != 0
+    return round(opt.splat_photons * opt.fine_level_photons) if finer else opt.splat_photons
+
+
 class SplatOptimizer(Optimizer):
     def _ensure_scene(self, heights: np.ndarray) -> None:
         if self._scene_grid == heights.shape:
@@ -58,7 +71,7 @@ class SplatOptimizer(Optimizer):
         self._scene_grid = heights.shape
         self._heights_set = heights.copy()  # the scene was built with them
 
-    def _photons(self, seed: int) -> None:
+    def _photons(self, seed: int, level: int) -> None:
         """Photons in the glass, after the inner layer, with their flux
         (``trace.into_glass``: refracted, and some reflected across the cavity).
 
@@ -77,16 +90,17 @@ class SplatOptimizer(Optimizer):
 
         from .trace import emit, into_glass
 
-        if seed == self._photon_seed:
+        count = photons_per_step(self.opt, level)
+        if (seed, count) == self._photon_seed:
             return
         mi = self.mi
         radius, length = (self.led.radius_mm, self.led.length_mm) if self.led else (0.0, 0.0)
-        o, d = emit(mi, self.light, radius, self.opt.splat_photons, seed, length)
+        o, d = emit(mi, self.light, radius, count, seed, length)
         self.n_photons = dr.width(d)
         self.o_glass, self.d_glass, self.w_glass = into_glass(mi, self.inner.scene, o, d, self.ior,
                                                               CAVITY_REFLECTIONS_EVERY)
         dr.eval(self.o_glass, self.d_glass, self.w_glass)
-        self._photon_seed = seed
+        self._photon_seed = (seed, count)
 
     def _set_heights(self, heights: np.ndarray) -> None:
         # Mitsuba rebuilds its BVH on every update (0.3-0.4 s on 2 cores at the default
@@ -206,18 +220,18 @@ class SplatOptimizer(Optimizer):
     def _render(self, heights: np.ndarray, views: list[int], seed: int) -> list[np.ndarray]:
         """(rows, cols) flux images of ``views``, from one trace of the photons."""
         self._ensure_scene(heights)
-        self._photons(seed)
+        self._photons(seed, -1)
         self._set_heights(heights)
         _, _, weights, per_view = self._landing(views, grad=False)
         return [self._splat(x.numpy().astype(np.float64), y.numpy().astype(np.float64), ok, view,
                             weights / self.n_photons).reshape(self.shapes[view])
                 for view, (x, y, ok) in zip(views, per_view)]
 
-    def gradient(self, heights: np.ndarray, views: list[int], seed: int) -> tuple[float, np.ndarray]:
+    def gradient(self, heights: np.ndarray, views: list[int], seed: int, level: int = -1) -> tuple[float, np.ndarray]:
         import drjit as dr
 
         self._ensure_scene(heights)
-        self._photons(seed)
+        self._photons(seed, level)
         self._set_heights(heights)
         corners, v, photon_weights, per_view = self._landing(views, grad=True)
         flux = photon_weights / self.n_photons

@@ -57,6 +57,20 @@ def test_splat_photons_are_stratified_so_steps_agree_closely(mi, tiny_design, in
     assert np.sqrt(np.mean(((a - b)[lit] * opt.n_photons) ** 2)) < 0.5 * np.sqrt(np.mean(independent**2))
 
 
+def test_finer_levels_trace_fine_level_photons_times_as_many(mi, tiny_design, inner_layer, tiny_setup):
+    opt = _optimizer(splat.SplatOptimizer, tiny_design, inner_layer, tiny_setup, splat_photons=100_000,
+                     levels=2, fine_level_photons=2.0)
+    h = np.zeros((tiny_design.optimize.grid_u, tiny_design.optimize.grid_v))
+    counts = {}
+    for level in (0, 1, -1):
+        opt.gradient(h, [0], seed=3, level=level)
+        counts[level] = opt.n_photons
+    assert counts[1] == counts[-1]
+    assert counts[1] / counts[0] == pytest.approx(2.0, rel=0.02)
+    single = dataclasses.replace(opt.opt, levels=1)
+    assert splat.photons_per_step(single, -1) == splat.photons_per_step(single, 0) == 100_000
+
+
 def test_splat_image_is_the_photon_count_per_pixel(tiny_design, inner_layer, tiny_setup):
     """A pattern that alternates pixel by pixel survives the splat (verify bins photons
     per pixel, so the loss must see what verify will); a tent one pixel wide would

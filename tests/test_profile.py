@@ -111,6 +111,16 @@ def test_a_preferred_slope_steeper_than_the_limit_is_refused_and_an_unset_one_is
     assert (limits.max_slope_deg, limits.steepest_slope_deg) == (68.0, None)
 
 
+def test_more_photons_on_the_fine_level_needs_the_splat_refinement(tmp_path):
+    p = tmp_path / "p.toml"
+    p.write_text("[optimize]\nmethod = 'ptracer'\nloss = 'si_mse'\nfine_level_photons = 2.0\n")
+    with pytest.raises(LampfabError, match=r"p\.toml: \[optimize\] fine_level_photons needs method \"splat\""):
+        profile.load_design(str(p))
+    p.write_text("[optimize]\nfine_level_photons = 20.0\n")
+    with pytest.raises(LampfabError, match=r"p\.toml.*fine_level_photons.*0\.1.*16"):
+        profile.load_design(str(p))
+
+
 def test_designing_for_the_led_needs_the_splat_refinement(tmp_path):
     p = tmp_path / "p.toml"
     p.write_text("[optimize]\nmethod = 'ptracer'\nloss = 'si_mse'\ndesign_light = 'led'\n")
