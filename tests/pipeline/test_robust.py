@@ -226,9 +226,11 @@ def test_memory_check_names_the_keys(monkeypatch, tiny_design):
     design = tiny_design
     monkeypatch.setattr(resources, "available_bytes", lambda: 1e6)
     with pytest.raises(LampfabError, match=r"optimize: needs about .* GB of memory \(25,000 photons from "
-                                           r"\[optimize\] splat_photons \(1 in 4 also traced across the cavity\) "
-                                           r"and 4,224 surface vertices"):
+                                           r"\[optimize\] splat_photons, fine_level_photons \(1 in 4 also traced "
+                                           r"across the cavity\) and 4,224 surface vertices"):
         resources.check_memory("optimize", design)
+    finer = dataclasses.replace(design, optimize=dataclasses.replace(design.optimize, levels=2, fine_level_photons=2.0))
+    assert resources.in_flight("optimize", finer)[0] == 50_000  # the fine level's photons set the peak
     monkeypatch.setattr(resources, "available_bytes", lambda: 64e9)
     resources.check_memory("optimize", design)
     monkeypatch.setattr(resources, "available_bytes", lambda: None)  # unknown: never a reason to stop
