@@ -67,7 +67,7 @@ class SplatOptimizer(Optimizer):
         self.fine = surface.fine_shape(*heights.shape, self.opt.tessellation)
         self.radial = surface.radial_dirs(*self.fine)
         self.inner = MeshScene(self.inner_v, self.inner_f[:, ::-1])  # normals into the cavity
-        self._photon_seed = None
+        self._photon_key = None
         self._scene_grid = heights.shape
         self._heights_set = heights.copy()  # the scene was built with them
 
@@ -91,7 +91,7 @@ class SplatOptimizer(Optimizer):
         from .trace import emit, into_glass
 
         count = photons_per_step(self.opt, level)
-        if (seed, count) == self._photon_seed:
+        if (seed, count) == self._photon_key:
             return
         mi = self.mi
         radius, length = (self.led.radius_mm, self.led.length_mm) if self.led else (0.0, 0.0)
@@ -100,7 +100,7 @@ class SplatOptimizer(Optimizer):
         self.o_glass, self.d_glass, self.w_glass = into_glass(mi, self.inner.scene, o, d, self.ior,
                                                               CAVITY_REFLECTIONS_EVERY)
         dr.eval(self.o_glass, self.d_glass, self.w_glass)
-        self._photon_seed = (seed, count)
+        self._photon_key = (seed, count)
 
     def _set_heights(self, heights: np.ndarray) -> None:
         # Mitsuba rebuilds its BVH on every update (0.3-0.4 s on 2 cores at the default

@@ -275,7 +275,7 @@ class Quadratic(optimize.Optimizer):
                          Limits(20.0, 45.0))
         self.faults, self.calls = faults, 0
 
-    def gradient(self, heights, views, seed):
+    def gradient(self, heights, views, seed, level=-1):
         self.calls += 1
         r = heights - 1.0
         if self.calls in self.faults:
@@ -341,7 +341,8 @@ def test_the_loss_explodes_past_20_times_its_best():
 def test_a_nan_gradient_is_a_fault_too(tiny_design):
     opt = Quadratic(tiny_design, {}, iterations=4, checkpoint_every=2)
     real = opt.gradient
-    opt.gradient = lambda h, v, seed: (real(h, v, seed)[0], np.full_like(h, np.nan)) if opt.calls == 2 else real(h, v, seed)
+    opt.gradient = lambda h, v, seed, level: ((real(h, v, seed)[0], np.full_like(h, np.nan)) if opt.calls == 2
+                                              else real(h, v, seed))
     state, messages, _ = _run(opt)
     assert len(messages) == 1 and messages[0].startswith("step 2: the gradient has") and "NaN or Inf" in messages[0]
     assert state.step == 4 and np.all(np.isfinite(state.heights))
