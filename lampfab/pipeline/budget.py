@@ -83,7 +83,7 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
     px = build.design.optimize.sensor_px
     targets = build.targets(px)
     texts = build.texts_to_read()
-    walls, worst, soft = {}, [], []
+    walls, worst, soft, text_fields = {}, [], [], {}
     for k, (wall, target) in enumerate(zip(build.walls, targets)):
         blur = kernels.blur_figures(k, wall)
         if blur is None:
@@ -103,12 +103,15 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
             walls[wall.name].update(words=len(ocr.words(texts[wall.name])),
                                     target_words_read=ocr.words_read(target, texts[wall.name]),
                                     perfect_words_read=ocr.words_read(blurred, texts[wall.name]))
+            text_fields[wall.name] = (wall, target, field, texts[wall.name])
         worst.append(max(median.values()))
     figures = {"design_px": px, "led": profile.as_dict(build.led), "walls": walls,
                "finest_detail_mm": float(np.median(worst)) if worst else None}
     figures["halve"] = _halve(build, walls)
     figures["sharper_led"] = _sharper_led(build, soft)
-    figures["warnings"] = _warnings(build, walls, figures["sharper_led"])
+    unreadable = _unreadable(build, walls)
+    figures["text_led"] = _text_led(build, unreadable, text_fields)
+    figures["warnings"] = _warnings(build, walls, figures["sharper_led"], unreadable, figures["text_led"])
     blur_px = max((max(w["led_blur_px"].values()) for w in walls.values()), default=None)
     figures["finer_design"] = bool(blur_px is not None and blur_px < FINER_DESIGN_BLUR_PX and px < FINER_DESIGN_PX)
     return figures
@@ -162,11 +165,47 @@ def _halve(build, walls: dict) -> str:
             f"walls half as far halve it in mm, not in pixels (the pictures shrink with them)")
 
 
-def _warnings(build, walls: dict, sharper: dict | None = None) -> list[str]:
-    """What the maker should know before the long stages (warnings, not errors);
-    ``sharper``: ``_sharper_led``'s finding."""
+def _unreadable(build, walls: dict) -> list[tuple[str, float, float]]:
+    """(wall, blur mm, em mm) of the text walls whose LED blur is over ``TEXT_BLUR_EM``
+    of the letters' size."""
     from .. import targets
 
+    out = []
+    texts = build.wall_texts()
+    for wall in build.walls:
+        if wall.name not in texts or wall.name not in walls:
+            continue
+        rows, cols = room.image_shape(wall, build.design.optimize.sensor_px)
+        em_mm = targets.text_layout(texts[wall.name], rows, cols)[0] * wall.width_mm / cols
+        blur = max(walls[wall.name]["led_blur_mm"].values())
+        if blur > TEXT_BLUR_EM * em_mm:
+            out.append((wall.name, blur, em_mm))
+    return out
+
+
+def _text_led(build, unreadable: list, text_fields: dict) -> dict | None:
+    """The bundled ball-shaped LED small enough that its blur stays under
+    ``TEXT_BLUR_EM`` on every ``unreadable`` wall, and the words Tesseract reads on each
+    such wall's target blurred by it (its kernels scaled from this LED's as in
+    ``_sharper_led``; a wall read when OCR ran there).  Returns {"name" (None when no
+    bundled LED is that small), "radius_mm" (the LED's, or the largest radius that would
+    do), "perfect_words_read": {wall: words}}; None when every wall's text reads."""
+    if not unreadable:
+        return None
+    largest = min(TEXT_BLUR_EM * em / blur for _, blur, em in unreadable) * build.led.radius_mm
+    fits = _largest_led(largest)
+    if fits is None:
+        return {"name": None, "radius_mm": largest, "perfect_words_read": {}}
+    scale = (fits.radius_mm / build.led.radius_mm) ** 2
+    read = {name: ocr.words_read(sharpness.blur(target, field * scale, wall), text)
+            for name, (wall, target, field, text) in text_fields.items() if name in {n for n, _, _ in unreadable}}
+    return {"name": fits.name, "radius_mm": fits.radius_mm, "perfect_words_read": read}
+
+
+def _warnings(build, walls: dict, sharper: dict | None, unreadable: list, text_led: dict | None) -> list[str]:
+    """What the maker should know before the long stages (warnings, not errors);
+    ``sharper``: ``_sharper_led``'s finding; ``unreadable`` and ``text_led``:
+    ``_unreadable``'s and ``_text_led``'s."""
     out = []
     soft = [f"{name} {w['detail_ssim']:.3f}" for name, w in walls.items() if w["detail_ssim"] < DETAIL_SSIM]
     if soft:
@@ -180,21 +219,16 @@ def _warnings(build, walls: dict, sharper: dict | None = None) -> list[str]:
                       f"even the smallest bundled LED, {led}, would leave it at {figure}")
         out.append(f"the picture holds detail finer than this LED can show: blurred by it, it scores SSIM "
                    f"{', '.join(soft)} against itself (below {DETAIL_SSIM}); expect it soft, or {advice}")
-    unreadable = []  # (wall, blur mm, em mm)
-    texts = build.wall_texts()
-    for wall in build.walls:
-        if wall.name not in texts or wall.name not in walls:
-            continue
-        rows, cols = room.image_shape(wall, build.design.optimize.sensor_px)
-        em_mm = targets.text_layout(texts[wall.name], rows, cols)[0] * wall.width_mm / cols
-        blur = max(walls[wall.name]["led_blur_mm"].values())
-        if blur > TEXT_BLUR_EM * em_mm:
-            unreadable.append((wall.name, blur, em_mm))
     if unreadable:
         names, blurs, ems = zip(*unreadable)
-        largest = min(TEXT_BLUR_EM * em / blur for _, blur, em in unreadable) * build.led.radius_mm
-        fits = _largest_led(largest)
-        led = f"LED={fits.name} ({fits.radius_mm:g} mm radius)" if fits else f"an LED of at most {largest:.2g} mm radius"
+        if text_led["name"]:
+            led = f"LED={text_led['name']} ({text_led['radius_mm']:g} mm radius)"
+            read = text_led["perfect_words_read"]
+            if read:  # OCR ran on those walls
+                led += (", with which a perfect lens would show " +
+                        ", ".join(f"{n} {read[n]}/{walls[n]['words']}" for n in read))
+        else:
+            led = f"an LED of at most {text_led['radius_mm']:.2g} mm radius"
         short = [f"{name} {w['perfect_words_read']}/{w['words']} (sharp {w['target_words_read']}/{w['words']})"
                  for name, w in ((n, walls[n]) for n in names)
                  if w.get("perfect_words_read", 0) < w.get("target_words_read", 0)]

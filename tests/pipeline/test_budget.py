@@ -13,6 +13,12 @@ def _walls(h, v, detail_ssim=0.95):
             for name in ("front", "left", "right")}
 
 
+def _warnings(build, walls):
+    """plan's warnings for these blur figures, with no kernels to read text through."""
+    unreadable = budget._unreadable(build, walls)
+    return budget._warnings(build, walls, None, unreadable, budget._text_led(build, unreadable, {}))
+
+
 @pytest.fixture
 def text_build(tmp_path):
     """A build folder whose prepare report says every wall shows ``text``."""
@@ -29,20 +35,20 @@ def test_text_too_small_for_the_leds_blur_is_a_warning_naming_an_led_that_reads(
     # The blur plan measured for the four words with the default LED, 60 x 84 mm, is 0.27
     # of their em (309 mm): at the edge (bench/text_blur.py; such a lamp read 11 of 12
     # words back).  A 0.8 mm LED halves it.
-    warnings = budget._warnings(text_build("Sweet dreams little one"), _walls(60.0, 84.0))
+    warnings = _warnings(text_build("Sweet dreams little one"), _walls(60.0, 84.0))
     assert len(warnings) == 1 and "may not read" in warnings[0] and "front, left, right" in warnings[0]
     assert "LED=mini1616" in warnings[0]
     assert "still reads whole" not in warnings[0]  # no OCR figures here: no claim about the words
-    assert budget._warnings(text_build("Sweet dreams little one"), _walls(30.0, 42.0)) == []
-    assert budget._warnings(text_build("Hi"), _walls(60.0, 84.0)) == []  # two big letters read
+    assert _warnings(text_build("Sweet dreams little one"), _walls(30.0, 42.0)) == []
+    assert _warnings(text_build("Hi"), _walls(60.0, 84.0)) == []  # two big letters read
 
 
 def test_detail_finer_than_the_blur_is_a_warning(text_build):
     build = text_build("Hi")
-    soft = budget._warnings(build, _walls(60.0, 84.0, detail_ssim=0.6))
+    soft = _warnings(build, _walls(60.0, 84.0, detail_ssim=0.6))
     assert len(soft) == 1 and "finer than this LED can show" in soft[0]
     # Just under the limit it says so with a figure that is under it (not "0.85, below 0.85").
-    near = budget._warnings(build, _walls(60.0, 84.0, detail_ssim=budget.DETAIL_SSIM - 0.002))
+    near = _warnings(build, _walls(60.0, 84.0, detail_ssim=budget.DETAIL_SSIM - 0.002))
     assert f"{budget.DETAIL_SSIM - 0.002:.3f}" in near[0]
 
 
@@ -93,7 +99,7 @@ def test_plan_reads_a_perfect_lenss_text_through_the_leds_blur(text_build, phras
     assert all(w["words"] == w["target_words_read"] == 4 for w in walls)
     read = [w["perfect_words_read"] for w in walls]
     if read_whole:
-        assert read == [4, 4, 4] and not any("perfect lens" in w for w in figures["warnings"])
+        assert read == [4, 4, 4] and not any("even a perfect lens" in w for w in figures["warnings"])
         # Past the blur at which text reads surely, the warning says that these words still read.
         warned = [w for w in figures["warnings"] if "may not read" in w]
         assert len(warned) == warns and all("still reads whole" in w for w in warned)
@@ -101,6 +107,19 @@ def test_plan_reads_a_perfect_lenss_text_through_the_leds_blur(text_build, phras
         assert max(read) < 4
         assert any("even a perfect lens would show OCR only front" in w and "(sharp 4/4)" in w
                    for w in figures["warnings"])
+    if warns:
+        # The LED plan names is read through too: its kernels are this LED's scaled by the
+        # radii's ratio, as the same blur given outright reads.
+        named = figures["text_led"]
+        assert named["name"] == "mini1616" and set(named["perfect_words_read"]) == {"front", "left", "right"}
+        ratio = named["radius_mm"] / build.led.radius_mm
+        direct = budget.summarize(build, _uniform_kernels(build, blur_mm[0] * ratio, blur_mm[1] * ratio))
+        assert named["perfect_words_read"] == {n: w["perfect_words_read"] for n, w in direct["walls"].items()}
+        shown = ", ".join(f"{n} {k}/4" for n, k in named["perfect_words_read"].items())
+        assert any(f"LED=mini1616 (0.8 mm radius), with which a perfect lens would show {shown}" in w
+                   for w in figures["warnings"])
+    else:
+        assert figures["text_led"] is None
 
 
 def _checkerboard(rows: int, cols: int, square_px: int) -> "np.ndarray":
