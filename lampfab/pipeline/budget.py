@@ -124,8 +124,6 @@ def _sharper_led(build, soft: list) -> dict | None:
     wall is soft or the build's LED is not a ball (a filament's blur has another shape).
     Returns {"name", "radius_mm", "detail_ssim": {wall: SSIM}, "enough": bool}.
 
-    The kernels scale with the emitter's size, as in ``_halve``: their covariances by
-    the square of the radii's ratio.
     """
     if not soft or build.led.shape != "sphere":
         return None
@@ -133,14 +131,19 @@ def _sharper_led(build, soft: list) -> dict | None:
                      key=lambda o: -o.radius_mm)
     found = None
     for led in smaller:
-        scale = (led.radius_mm / build.led.radius_mm) ** 2
-        scores = {wall.name: metrics.ssim(sharpness.blur(target, field * scale, wall), target)
+        scores = {wall.name: metrics.ssim(sharpness.blur(target, _scaled(build, led, field), wall), target)
                   for wall, target, field in soft}
         found = {"name": led.name, "radius_mm": led.radius_mm, "detail_ssim": scores,
                  "enough": min(scores.values()) >= DETAIL_SSIM}
         if found["enough"]:
             break
     return found
+
+
+def _scaled(build, led: profile.Led, field):
+    """The build's LED's kernel ``field`` as ``led`` would draw it: kernels scale with the
+    emitter's size, as in ``_halve``, their covariances by the square of the radii's ratio."""
+    return field * (led.radius_mm / build.led.radius_mm) ** 2
 
 
 def _halve(build, walls: dict) -> str:
@@ -186,20 +189,21 @@ def _unreadable(build, walls: dict) -> list[tuple[str, float, float]]:
 def _text_led(build, unreadable: list, text_fields: dict) -> dict | None:
     """The bundled ball-shaped LED small enough that its blur stays under
     ``TEXT_BLUR_EM`` on every ``unreadable`` wall, and the words Tesseract reads on each
-    such wall's target blurred by it (its kernels scaled from this LED's as in
-    ``_sharper_led``; a wall read when OCR ran there).  Returns {"name" (None when no
-    bundled LED is that small), "radius_mm" (the LED's, or the largest radius that would
-    do), "perfect_words_read": {wall: words}}; None when every wall's text reads."""
+    such wall's target blurred by it (a wall read when OCR ran there).  Returns
+    {"max_radius_mm": the largest radius that would do, "name" and "radius_mm": the LED's
+    (None when no bundled LED is that small), "perfect_words_read": {wall: words}}; None
+    when every wall's text reads."""
     if not unreadable:
         return None
     largest = min(TEXT_BLUR_EM * em / blur for _, blur, em in unreadable) * build.led.radius_mm
     fits = _largest_led(largest)
-    if fits is None:
-        return {"name": None, "radius_mm": largest, "perfect_words_read": {}}
-    scale = (fits.radius_mm / build.led.radius_mm) ** 2
-    read = {name: ocr.words_read(sharpness.blur(target, field * scale, wall), text)
-            for name, (wall, target, field, text) in text_fields.items() if name in {n for n, _, _ in unreadable}}
-    return {"name": fits.name, "radius_mm": fits.radius_mm, "perfect_words_read": read}
+    found = {"max_radius_mm": largest, "name": None, "radius_mm": None, "perfect_words_read": {}}
+    if fits is not None:
+        names = {name for name, _, _ in unreadable}
+        read = {name: ocr.words_read(sharpness.blur(target, _scaled(build, fits, field), wall), text)
+                for name, (wall, target, field, text) in text_fields.items() if name in names}
+        found.update(name=fits.name, radius_mm=fits.radius_mm, perfect_words_read=read)
+    return found
 
 
 def _warnings(build, walls: dict, sharper: dict | None, unreadable: list, text_led: dict | None) -> list[str]:
@@ -228,7 +232,7 @@ def _warnings(build, walls: dict, sharper: dict | None, unreadable: list, text_l
                 led += (", with which a perfect lens would show " +
                         ", ".join(f"{n} {read[n]}/{walls[n]['words']}" for n in read))
         else:
-            led = f"an LED of at most {text_led['radius_mm']:.2g} mm radius"
+            led = f"an LED of at most {text_led['max_radius_mm']:.2g} mm radius"
         short = [f"{name} {w['perfect_words_read']}/{w['words']} (sharp {w['target_words_read']}/{w['words']})"
                  for name, w in ((n, walls[n]) for n in names)
                  if w.get("perfect_words_read", 0) < w.get("target_words_read", 0)]
