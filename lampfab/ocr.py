@@ -5,11 +5,17 @@ Tesseract reads the render's linear light (the wall's physical contrast between 
 and gaps), as dark letters on white, the way its models were trained.  It does not read
 the display's sRGB encoding of a soft picture: that encoding lifts the dim light between
 blurred strokes, and there Tesseract read none of four words even of the sharp target
-blurred by a fifth of an em, which a person reads easily.  On linear light its limit
-matches a person's: words read up to a blur of 0.3-0.4 em and not at 0.5 em, where the
-blur leaves too little contrast at two cycles per letter, below which people stop
-reading (Legge, Pelli, Rubin & Schleske, "Psychophysics of reading I", Vision Research
-25, 1985).  bench/text_blur.py measures it.
+blurred by a fifth of an em, which a person reads easily.
+
+A wall is read twice: as one block of text, and line by line (the rows of each line of
+the phrase's layout, ``targets.text_lines``), and a word counts when either reading finds
+it.  Either reading alone sometimes loses a word a person reads at once, or a whole
+wall: Tesseract's page analysis misplaces a short line set alone ("big" read as "rh"),
+or gives up on a block.  Together they read every word of 16 sharp four- and five-word
+targets at 64 px, and their limit matches a person's: words read up to a blur of 0.3 em
+and mostly not at 0.5 em, where the blur leaves too little contrast at two cycles per
+letter, below which people stop reading (Legge, Pelli, Rubin & Schleske, "Psychophysics
+of reading I", Vision Research 25, 1985).  bench/text_blur.py measures it.
 
 A wall rendered at the design's resolution (64 px across: an em of about 11 px) is far
 below the 20-30 px letters Tesseract reads best, so the render is scaled up first.  A
@@ -18,6 +24,7 @@ phrase's word counts once for each time it appears.
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -36,6 +43,10 @@ UPSCALE = 8
 # strokes cross) would otherwise push every stroke to grey.
 WHITE_PERCENTILE = 99.5
 
+# Dark rows above and below a line read alone: half a line's height at 64 px, as much
+# margin as the block has, and no part of the neighbouring lines.
+LINE_MARGIN_PX = 4
+
 
 def available() -> bool:
     """Whether the ``tesseract`` program is installed."""
@@ -49,28 +60,43 @@ def words(text: str) -> list[str]:
     return [w for w in re.sub(r"[^0-9a-z]+", " ", plain).split() if w]
 
 
-def read(image: np.ndarray) -> list[str]:
-    """The words Tesseract reads in ``image`` ((h, w) float, linear light, any scale)."""
+def read(image: np.ndarray, psm: int = 6) -> list[str]:
+    """The words Tesseract reads in ``image`` ((h, w) float, linear light, any scale),
+    as one block of text (``psm`` 6) or one line (7)."""
     from PIL import Image
 
     white = float(np.percentile(image, WHITE_PERCENTILE))
     light = np.clip(image / white, 0.0, 1.0) if white > 0 else np.zeros_like(image)
     page = Image.fromarray(np.uint8(np.round(255 * (1.0 - light))))  # dark letters on white
     page = page.resize((page.width * UPSCALE, page.height * UPSCALE), Image.Resampling.BICUBIC)
-    return words(_tesseract(page))
+    return words(_tesseract(page, psm))
 
 
 def words_read(image: np.ndarray, phrase: str) -> int:
-    """How many of ``phrase``'s words Tesseract reads in ``image``."""
-    return sum((Counter(words(phrase)) & Counter(read(image))).values())
+    """How many of ``phrase``'s words Tesseract reads in ``image``, a wall showing it as
+    ``targets.text_image`` sets it at ``image``'s size: read as a block and line by line."""
+    from .targets import text_lines
+
+    from concurrent.futures import ThreadPoolExecutor
+
+    pages = [(image, 6)] + [(np.pad(image[first:end], ((LINE_MARGIN_PX, LINE_MARGIN_PX), (0, 0))), 7)
+                            for first, end in text_lines(phrase, *image.shape)]
+    found = Counter()
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        for read_words in pool.map(lambda page: read(*page), pages):
+            found |= Counter(read_words)
+    return sum((Counter(words(phrase)) & found).values())
 
 
-def _tesseract(page) -> str:
+def _tesseract(page, psm: int) -> str:
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "wall.png"
         page.save(path)
-        # --psm 6: one block of text, the layout targets.text_image sets.
-        done = subprocess.run(["tesseract", str(path), "-", "--psm", "6"], capture_output=True, text=True)
+        # One thread each: on a wall-sized page Tesseract's OpenMP threads cost more
+        # than they give (0.23 s against 0.16 s a page on 2 cores), and words_read runs
+        # its pages side by side.
+        done = subprocess.run(["tesseract", str(path), "-", "--psm", str(psm)], capture_output=True, text=True,
+                              env={**os.environ, "OMP_THREAD_LIMIT": "1"})
     if done.returncode:
         raise RuntimeError(f"tesseract failed: {done.stderr.strip()[-300:]}")
     return done.stdout

@@ -36,16 +36,38 @@ def text_image(text: str, rows: int, cols: int) -> np.ndarray:
     Newlines in ``text`` are kept; otherwise words are spread over 1..n lines,
     whichever gives the largest letters.
     """
+    em_px, layout = text_layout(text, rows, cols)
+    # Glyph coverage is the share of a pixel lit, so it is linear luminance as is.
+    return np.asarray(_drawn(layout, em_px, rows, cols).reduce(_SUPERSAMPLE), np.float64) / 255.0
+
+
+def text_lines(text: str, rows: int, cols: int) -> list[tuple[int, int]]:
+    """The rows each line of ``text_image(text, rows, cols)`` occupies: [(first row,
+    end row)] top to bottom, each band cut midway between its ink and its neighbours'
+    (bands of adjacent lines may share a row)."""
+    em_px, layout = text_layout(text, rows, cols)
+    lines = layout.split("\n")
+    inks = []
+    for i in range(len(lines)):
+        # The other lines blanked, not removed, keep this one where the layout puts it.
+        alone = "\n".join(line if j == i else " " for j, line in enumerate(lines))
+        ink = np.flatnonzero(np.asarray(_drawn(alone, em_px, rows, cols)).any(axis=1))
+        inks.append((ink[0] / _SUPERSAMPLE, (ink[-1] + 1) / _SUPERSAMPLE) if len(ink) else None)
+    inked = [band for band in inks if band is not None]
+    cuts = [0.0] + [(a[1] + b[0]) / 2 for a, b in zip(inked, inked[1:])] + [float(rows)]
+    return [(int(np.floor(cuts[i])), int(np.ceil(cuts[i + 1]))) for i in range(len(inked))]
+
+
+def _drawn(layout: str, em_px: float, rows: int, cols: int):
+    """``layout`` (lines joined by newlines) drawn white on black, centred, at
+    ``_SUPERSAMPLE`` times (rows, cols): a Pillow "L" image."""
     from PIL import Image, ImageDraw, ImageFont
 
-    em_px, layout = text_layout(text, rows, cols)
     font = ImageFont.truetype(str(FONT), max(1, int(em_px * _SUPERSAMPLE)))
     big = Image.new("L", (cols * _SUPERSAMPLE, rows * _SUPERSAMPLE), 0)
-    draw = ImageDraw.Draw(big)
     centre = (big.width / 2, big.height / 2)
-    draw.multiline_text(centre, layout, fill=255, font=font, anchor="mm", align="center")
-    # Glyph coverage is the share of a pixel lit, so it is linear luminance as is.
-    return np.asarray(big.reduce(_SUPERSAMPLE), np.float64) / 255.0
+    ImageDraw.Draw(big).multiline_text(centre, layout, fill=255, font=font, anchor="mm", align="center")
+    return big
 
 
 def text_layout(text: str, rows: int, cols: int) -> tuple[float, str]:

@@ -297,8 +297,7 @@ def optimizer_agreement(out_dir, reference_npz, names: list[str]) -> dict[str, d
 
 def _words_read(phrase: str, target: np.ndarray, point: np.ndarray, led: np.ndarray) -> dict:
     """How many of ``phrase``'s words Tesseract reads in a wall's two renders, and in its
-    sharp target at the same size (at 64 px the reader itself misses a word of some
-    phrases: the most a render can be expected to give)."""
+    sharp target at the same size (the most a render can be expected to give)."""
     from . import ocr
 
     return {"words": len(ocr.words(phrase)), "led_words_read": ocr.words_read(led, phrase),

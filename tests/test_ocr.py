@@ -1,5 +1,6 @@
 """Reading a text lamp's words back (``lampfab.ocr``, Tesseract): it reads a sharp
-phrase, and it does not read one blurred past legibility or a different phrase."""
+phrase (as a block and line by line), and it does not read one blurred past legibility
+or a different phrase."""
 
 import numpy as np
 import pytest
@@ -23,6 +24,13 @@ def test_tesseract_is_installed():
 
 def test_a_sharp_phrase_reads_word_for_word(wall):
     assert ocr.words_read(wall, PHRASE) == 4
+
+
+@pytest.mark.parametrize("phrase", ["Dream big little star", "You are my sunshine"])
+def test_a_short_word_on_a_line_of_its_own_reads(phrase):
+    # Read as one block only, Tesseract loses the lone short line of these sharp
+    # targets ("big" read as "rh", "my" as "sh"); read line by line it finds them.
+    assert ocr.words_read(targets.text_image(phrase, *SHAPE), phrase) == 4
 
 
 def test_a_phrase_with_photon_noise_and_a_soft_blur_still_reads(wall):

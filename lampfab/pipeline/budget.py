@@ -42,9 +42,10 @@ DETAIL_SSIM = 0.85
 
 # Text reads while the blur (4 sigma) stays under this share of the letters' size (their
 # em): it then still leaves the gaps inside and between strokes.  Measured with
-# bench/text_blur.py (Tesseract on the text targets blurred by Gaussians): every phrase
-# read whole up to 0.2 em, at 0.3 one of three lost a word, at 0.5 none read whole; and
-# three four-word lamps whose blur was 0.27-0.29 em read 35 of their 36 words.
+# bench/text_blur.py (Tesseract on 16 phrases' targets blurred by Gaussians): 14 of 16
+# read whole up to 0.3 em, 2 at 0.4, none at 0.5.  A lamp's blur is no Gaussian and
+# comes with haze and photon noise: four-word lamps whose blur was 0.27-0.29 em read 44
+# of their 48 words, so plan warns a little before 0.3.
 TEXT_BLUR_EM = 0.25
 
 # plan recommends the 128 px profile (hires) when the LED's blur is under this many pixels
@@ -98,8 +99,8 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
         if walls[wall.name]["detail_ssim"] < DETAIL_SSIM:
             soft.append((wall, target, field))
         if wall.name in texts:
-            # The sharp target's reading too: at 64 px Tesseract misses a word of some
-            # sharp phrases, which is the reader's limit, not the LED's.
+            # The sharp target's reading too: a word the reader misses there is its own
+            # limit, not the LED's.
             walls[wall.name].update(words=len(ocr.words(texts[wall.name])),
                                     target_words_read=ocr.words_read(target, texts[wall.name]),
                                     perfect_words_read=ocr.words_read(blurred, texts[wall.name]))

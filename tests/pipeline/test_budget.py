@@ -84,10 +84,10 @@ def _uniform_kernels(build, h_mm: float, v_mm: float):
 
 
 @pytest.mark.parametrize("phrase, blur_mm, read_whole, warns", [
-    ("Sleep tight my angel", (68.0, 97.0), False, True),  # its descenders run into the next line
+    ("Sleep tight my angel", (100.0, 140.0), False, True),  # 0.45 em: its descenders run into the next line
     ("Sleep tight my angel", (33.0, 45.0), True, False),
     ("Good night sweet pea", (68.0, 97.0), True, True)],
-    ids=["the default LED", "mini1616", "the default LED, another phrase"])
+    ids=["an LED half as large again as the default", "mini1616", "the default LED, another phrase"])
 def test_plan_reads_a_perfect_lenss_text_through_the_leds_blur(text_build, phrase, blur_mm, read_whole, warns):
     from lampfab import ocr, targets
 
@@ -111,12 +111,14 @@ def test_plan_reads_a_perfect_lenss_text_through_the_leds_blur(text_build, phras
         # The LED plan names is read through too: its kernels are this LED's scaled by the
         # radii's ratio, as the same blur given outright reads.
         named = figures["text_led"]
-        assert named["name"] == "mini1616" and set(named["perfect_words_read"]) == {"front", "left", "right"}
+        assert named["name"] == budget._largest_led(named["max_radius_mm"]).name
+        assert set(named["perfect_words_read"]) == {"front", "left", "right"}
         ratio = named["radius_mm"] / build.led.radius_mm
         direct = budget.summarize(build, _uniform_kernels(build, blur_mm[0] * ratio, blur_mm[1] * ratio))
         assert named["perfect_words_read"] == {n: w["perfect_words_read"] for n, w in direct["walls"].items()}
         shown = ", ".join(f"{n} {k}/4" for n, k in named["perfect_words_read"].items())
-        assert any(f"LED=mini1616 (0.8 mm radius), with which a perfect lens would show {shown}" in w
+        led = f"LED={named['name']} ({named['radius_mm']:g} mm radius)"
+        assert any(f"{led}, with which a perfect lens would show {shown}" in w
                    for w in figures["warnings"])
     else:
         assert figures["text_led"] is None

@@ -50,6 +50,22 @@ def test_text_keeps_given_lines_and_refuses_nothing_or_too_much():
     assert targets.text_image("Joyeux anniversaire Léa 😀", 60, 80).max() > 0.5    # DejaVu has both
 
 
+def test_text_lines_hold_each_line_and_only_its_neighbours_margin():
+    """Each band of ``text_lines`` holds all of its line's ink: a wall's lines, read one
+    by one, show every word whole."""
+    rows, cols = 48, 64
+    img = targets.text_image("Dream big little star", rows, cols)
+    bands = targets.text_lines("Dream big little star", rows, cols)
+    assert len(bands) == targets.text_layout("Dream big little star", rows, cols)[1].count("\n") + 1 == 4
+    assert bands[0][0] == 0 and bands[-1][1] == rows
+    lit = np.flatnonzero(img.any(axis=1))
+    covered = set().union(*(range(a, b) for a, b in bands))
+    assert set(lit) <= covered
+    # Adjacent bands meet (or share the row their inks' gap is cut in), never overlap more.
+    assert all(0 <= a[1] - b[0] <= 1 for a, b in zip(bands, bands[1:]))
+    assert all(b - a >= 0.6 * rows / len(bands) for a, b in bands)
+
+
 # -- panorama -----------------------------------------------------------------------
 def test_panorama_columns_land_on_the_walls_they_face():
     """A bright column at the panorama's centre, quarter and three quarters lands in
