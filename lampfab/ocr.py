@@ -31,6 +31,7 @@ import subprocess
 import tempfile
 import unicodedata
 from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -43,8 +44,8 @@ UPSCALE = 8
 # strokes cross) would otherwise push every stroke to grey.
 WHITE_PERCENTILE = 99.5
 
-# Dark rows above and below a line read alone: half a line's height at 64 px, as much
-# margin as the block has, and no part of the neighbouring lines.
+# Dark rows of the wall's image above and below a line read alone: a third of a line's
+# height at 64 px, about the block's own margin, with no part of the neighbouring lines.
 LINE_MARGIN_PX = 4
 
 
@@ -76,8 +77,6 @@ def words_read(image: np.ndarray, phrase: str) -> int:
     """How many of ``phrase``'s words Tesseract reads in ``image``, a wall showing it as
     ``targets.text_image`` sets it at ``image``'s size: read as a block and line by line."""
     from .targets import text_lines
-
-    from concurrent.futures import ThreadPoolExecutor
 
     pages = [(image, 6)] + [(np.pad(image[first:end], ((LINE_MARGIN_PX, LINE_MARGIN_PX), (0, 0))), 7)
                             for first, end in text_lines(phrase, *image.shape)]

@@ -111,7 +111,7 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
     figures["halve"] = _halve(build, walls)
     figures["sharper_led"] = _sharper_led(build, soft)
     unreadable = _unreadable(build, walls)
-    figures["text_led"] = _text_led(build, unreadable, text_fields)
+    figures["text_led"] = _text_led(build, walls, unreadable, text_fields)
     figures["warnings"] = _warnings(build, walls, figures["sharper_led"], unreadable, figures["text_led"])
     blur_px = max((max(w["led_blur_px"].values()) for w in walls.values()), default=None)
     figures["finer_design"] = bool(blur_px is not None and blur_px < FINER_DESIGN_BLUR_PX and px < FINER_DESIGN_PX)
@@ -128,8 +128,7 @@ def _sharper_led(build, soft: list) -> dict | None:
     """
     if not soft or build.led.shape != "sphere":
         return None
-    smaller = sorted((o for o in _bundled_leds() if o.shape == "sphere" and 0 < o.radius_mm < build.led.radius_mm),
-                     key=lambda o: -o.radius_mm)
+    smaller = [o for o in _balls(build.led.radius_mm) if o.radius_mm < build.led.radius_mm]
     found = None
     for led in smaller:
         scores = {wall.name: metrics.ssim(sharpness.blur(target, _scaled(build, led, field), wall), target)
@@ -157,7 +156,7 @@ def _halve(build, walls: dict) -> str:
     if led.shape == "cylinder":  # a filament's length makes the blur up the wall
         emitter = f"a filament half as long ({led.length_mm / 2:g} mm: {v / 2:.0f} mm up the wall)"
     else:
-        smaller = _largest_led(led.radius_mm / 2)
+        smaller = next(iter(_balls(led.radius_mm / 2)), None)
         if smaller:
             s = smaller.radius_mm / led.radius_mm
             emitter = (f"an LED at most half as wide (LED={smaller.name}, {smaller.radius_mm:g} mm radius: "
@@ -187,23 +186,30 @@ def _unreadable(build, walls: dict) -> list[tuple[str, float, float]]:
     return out
 
 
-def _text_led(build, unreadable: list, text_fields: dict) -> dict | None:
-    """The bundled ball-shaped LED small enough that its blur stays under
-    ``TEXT_BLUR_EM`` on every ``unreadable`` wall, and the words Tesseract reads on each
-    such wall's target blurred by it (a wall read when OCR ran there).  Returns
-    {"max_radius_mm": the largest radius that would do, "name" and "radius_mm": the LED's
-    (None when no bundled LED is that small), "perfect_words_read": {wall: words}}; None
-    when every wall's text reads."""
+def _text_led(build, walls: dict, unreadable: list, text_fields: dict) -> dict | None:
+    """The bundled ball-shaped LED to name for the ``unreadable`` walls' text: of those
+    whose blur stays under ``TEXT_BLUR_EM`` there, the largest with which a perfect lens
+    would show every word the sharp target shows (Tesseract on the target blurred by its
+    kernels, on the walls of ``text_fields`` OCR ran on), or else the one that shows the
+    most.  Returns {"max_radius_mm": the largest radius under the limit, "name" and
+    "radius_mm": the LED's (None when no bundled LED is that small),
+    "perfect_words_read": {wall: words}}; None when every wall's text reads."""
     if not unreadable:
         return None
     largest = min(TEXT_BLUR_EM * em / blur for _, blur, em in unreadable) * build.led.radius_mm
-    fits = _largest_led(largest)
     found = {"max_radius_mm": largest, "name": None, "radius_mm": None, "perfect_words_read": {}}
-    if fits is not None:
-        names = {name for name, _, _ in unreadable}
-        read = {name: ocr.words_read(sharpness.blur(target, _scaled(build, fits, field), wall), text)
+    names = {name for name, _, _ in unreadable}
+    best = None
+    for led in _balls(largest):
+        read = {name: ocr.words_read(sharpness.blur(target, _scaled(build, led, field), wall), text)
                 for name, (wall, target, field, text) in text_fields.items() if name in names}
-        found.update(name=fits.name, radius_mm=fits.radius_mm, perfect_words_read=read)
+        if best is None or sum(read.values()) > sum(best[1].values()):
+            best = (led, read)
+        if all(k >= walls[name]["target_words_read"] for name, k in read.items()):
+            best = (led, read)
+            break
+    if best is not None:
+        found.update(name=best[0].name, radius_mm=best[0].radius_mm, perfect_words_read=best[1])
     return found
 
 
@@ -256,7 +262,7 @@ def _bundled_leds() -> list[profile.Led]:
     return [profile.load_led(str(p)) for p in sorted((profile.PROFILE_DIR / "led").glob("*.toml"))]
 
 
-def _largest_led(max_radius_mm: float) -> profile.Led | None:
-    """The bundled ball-shaped LED of the largest radius up to ``max_radius_mm``."""
-    return max((o for o in _bundled_leds() if o.shape == "sphere" and 0 < o.radius_mm <= max_radius_mm),
-               key=lambda o: o.radius_mm, default=None)
+def _balls(max_radius_mm: float) -> list[profile.Led]:
+    """The bundled ball-shaped LEDs of radius up to ``max_radius_mm``, largest first."""
+    return sorted((o for o in _bundled_leds() if o.shape == "sphere" and 0 < o.radius_mm <= max_radius_mm),
+                  key=lambda o: -o.radius_mm)

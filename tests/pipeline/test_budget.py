@@ -16,7 +16,7 @@ def _walls(h, v, detail_ssim=0.95):
 def _warnings(build, walls):
     """plan's warnings for these blur figures, with no kernels to read text through."""
     unreadable = budget._unreadable(build, walls)
-    return budget._warnings(build, walls, None, unreadable, budget._text_led(build, unreadable, {}))
+    return budget._warnings(build, walls, None, unreadable, budget._text_led(build, walls, unreadable, {}))
 
 
 @pytest.fixture
@@ -41,6 +41,34 @@ def test_text_too_small_for_the_leds_blur_is_a_warning_naming_an_led_that_reads(
     assert "still reads whole" not in warnings[0]  # no OCR figures here: no claim about the words
     assert _warnings(text_build("Sweet dreams little one"), _walls(30.0, 42.0)) == []
     assert _warnings(text_build("Hi"), _walls(60.0, 84.0)) == []  # two big letters read
+
+
+@pytest.mark.parametrize("reads_whole_from, named", [("mini1616", "mini1616"), ("die1mm", "die1mm"), (None, "die1mm")])
+def test_plan_names_the_largest_led_with_which_the_text_reads(text_build, monkeypatch, reads_whole_from, named):
+    """Of the LEDs under the blur limit, plan names the largest with which a perfect lens
+    shows every word the sharp target shows, or else the one that shows the most.  A
+    stand-in reader reads one word more the sharper the picture (its peak: a smaller LED
+    blurs the light of one lit pixel less)."""
+    import numpy as np
+
+    from lampfab import ocr, room, sharpness
+
+    build = text_build("Sweet dreams little one")
+    wall = build.walls[0]
+    rows, cols = room.image_shape(wall, build.design.optimize.sensor_px)
+    target = np.zeros((rows, cols))
+    target[rows // 2, cols // 2] = 1.0
+    field = np.broadcast_to([60.0**2 / 16, 84.0**2 / 16, 0.0], (rows, cols, 3))  # the default's 60 x 84 mm
+    peak = {o.name: sharpness.blur(target, budget._scaled(build, o, field), wall).max() for o in budget._balls(0.8)}
+    # The peak with which the stand-in first reads all four words; past every LED: never.
+    cut = peak[reads_whole_from] if reads_whole_from else 2 * max(peak.values())
+    # Short of that, the dimmest peak reads 2 words, the next 3.
+    monkeypatch.setattr(ocr, "words_read", lambda image, text: 4 if image.max() >= cut - 1e-12
+                        else 2 + sum(p < image.max() - 1e-12 for p in peak.values()))
+    walls = {wall.name: {"target_words_read": 4}}
+    found = budget._text_led(build, walls, [(wall.name, 85.0, 300.0)], {wall.name: (wall, target, field, "x")})
+    assert found["name"] == named and found["max_radius_mm"] == pytest.approx(0.25 * 300 / 85 * 1.5)
+    assert found["perfect_words_read"] == {wall.name: 4 if reads_whole_from else 3}
 
 
 def test_detail_finer_than_the_blur_is_a_warning(text_build):
@@ -84,7 +112,7 @@ def _uniform_kernels(build, h_mm: float, v_mm: float):
 
 
 @pytest.mark.parametrize("phrase, blur_mm, read_whole, warns", [
-    ("Sleep tight my angel", (100.0, 140.0), False, True),  # 0.45 em: its descenders run into the next line
+    ("Sleep tight my angel", (100.0, 140.0), False, True),  # about 0.5 em: its descenders run into the next line
     ("Sleep tight my angel", (33.0, 45.0), True, False),
     ("Good night sweet pea", (68.0, 97.0), True, True)],
     ids=["an LED half as large again as the default", "mini1616", "the default LED, another phrase"])
@@ -111,7 +139,7 @@ def test_plan_reads_a_perfect_lenss_text_through_the_leds_blur(text_build, phras
         # The LED plan names is read through too: its kernels are this LED's scaled by the
         # radii's ratio, as the same blur given outright reads.
         named = figures["text_led"]
-        assert named["name"] == budget._largest_led(named["max_radius_mm"]).name
+        assert named["name"] in {o.name for o in budget._balls(named["max_radius_mm"])}
         assert set(named["perfect_words_read"]) == {"front", "left", "right"}
         ratio = named["radius_mm"] / build.led.radius_mm
         direct = budget.summarize(build, _uniform_kernels(build, blur_mm[0] * ratio, blur_mm[1] * ratio))
