@@ -49,8 +49,16 @@ def _targets(p: argparse.ArgumentParser, with_image: bool = True) -> None:
         p.add_argument("--target", dest="image", default="", help="image projected on every wall (PNG or JPEG)")
     for wall in WALLS:
         p.add_argument(f"--target-{wall}", default="", help=f"image for the {wall} only")
-    p.add_argument("--text", default="", help='words to project instead of an image, e.g. "Happy birthday"')
+    p.add_argument("--text", default="", type=_line_breaks,
+                   help='words to project instead of an image, e.g. "Happy birthday" ("\\n" breaks a line: '
+                        '"Sleep well\\nmy darling")')
     p.add_argument("--panorama", default="", help="a 360° panorama (PNG or JPEG) wrapped around the room")
+
+
+def _line_breaks(text: str) -> str:
+    """``text`` with each two-character "\\n" made a line break: Make cannot pass a real
+    one from ``TEXT=`` into its recipes' shell."""
+    return text.replace("\\n", "\n")
 
 
 def parser() -> argparse.ArgumentParser:

@@ -4,8 +4,9 @@ Both return what ``image.load_target`` + ``image.letterbox`` return for a pictur
 (rows, cols) float64 linear luminance in [0, 1], one array per wall.
 
 * Text is set in the bundled DejaVu Sans Bold (``data/DejaVuSans-Bold.ttf``, Bitstream
-  Vera licence beside it), white on black, centred, broken into the number of lines
-  that makes the letters largest on the wall.
+  Vera licence beside it), white on black, centred, on the number of lines that
+  makes the letters largest on the wall, each line break placed where the widest line
+  is narrowest.
 * A panorama is a 360° cylindrical (or equirectangular) image: its width spans all
   azimuths, its centre column is the front wall, the left wall is a quarter to the
   left, the right wall a quarter to the right.  Each wall pixel takes the panorama
@@ -72,7 +73,9 @@ def _drawn(layout: str, em_px: float, rows: int, cols: int):
 
 def text_layout(text: str, rows: int, cols: int) -> tuple[float, str]:
     """How ``text_image`` sets ``text`` in (rows, cols): (the font's size, its em, in
-    pixels; the lines joined by newlines)."""
+    pixels; the lines joined by newlines).  The user's own line breaks are kept;
+    otherwise the words go on as many lines as make the letters largest, each line break
+    placed so that the widest line is as narrow as it can be."""
     from PIL import Image, ImageDraw, ImageFont
 
     words_by_line = [ln.split() for ln in str(text).splitlines()]
@@ -88,13 +91,13 @@ def text_layout(text: str, rows: int, cols: int) -> tuple[float, str]:
                            f"{' '.join(missing)}; they would show as empty boxes. Give the words in "
                            f"Latin, Greek or Cyrillic letters, or make a picture of them and use TARGET=")
     box_w, box_h = cols * (1 - 2 * TEXT_MARGIN), rows * (1 - 2 * TEXT_MARGIN)
+    draw = ImageDraw.Draw(Image.new("L", (1, 1)))
     best = None
-    for lines in _layouts(words_by_line):
+    for lines in _layouts(words_by_line, font):
         layout = "\n".join(lines)
-        left, top, right, bottom = ImageDraw.Draw(Image.new("L", (1, 1))).multiline_textbbox(
-            (0, 0), layout, font=font, align="center")
+        left, top, right, bottom = draw.multiline_textbbox((0, 0), layout, font=font, align="center")
         scale = min(box_w / (right - left), box_h / (bottom - top))
-        if best is None or scale > best[0]:
+        if best is None or scale > best[0]:  # of equals, the fewer lines
             best = (scale, layout)
     return probe * best[0], best[1]
 
@@ -106,29 +109,43 @@ def _missing_glyphs(text: str, font) -> list[str]:
     return sorted({ch for ch in text if not ch.isspace() and bytes(font.getmask(ch)) == notdef})
 
 
-def _layouts(words_by_line: list[list[str]]):
-    """Candidate line breaks: the user's lines, each split into k balanced lines."""
+def _layouts(words_by_line: list[list[str]], font) -> list[list[str]]:
+    """Candidate line breaks: the user's lines as they are, or else for each number of
+    lines k the words cut into k lines whose widest (in ``font``) is narrowest."""
     if len(words_by_line) > 1:
-        yield [" ".join(w) for w in words_by_line]
-        return
-    words = words_by_line[0]
-    for k in range(1, len(words) + 1):
-        yield _balanced(words, k)
+        return [[" ".join(w) for w in words_by_line]]
+    return _narrowest(words_by_line[0], font)
 
 
-def _balanced(words: list[str], k: int) -> list[str]:
-    """``words`` greedily cut into k lines of about equal length in characters."""
-    target = sum(len(w) + 1 for w in words) / k
-    lines, current = [], []
-    for i, word in enumerate(words):
-        current.append(word)
-        left_words, left_lines = len(words) - i - 1, k - len(lines) - 1
-        if left_lines and (len(" ".join(current)) >= target or left_words == left_lines):
-            lines.append(" ".join(current))
-            current = []
-    if current:
-        lines.append(" ".join(current))
-    return lines
+def _narrowest(words: list[str], font) -> list[list[str]]:
+    """For k = 1 .. len(words): ``words`` cut into k lines so that the widest line (in
+    ``font``) is as narrow as it can be.  One dynamic programme over the cuts serves
+    every k: O(n^3) for n words, cheap for the 200 characters a wall takes."""
+    n = len(words)
+    width = [[0.0] * (n + 1) for _ in range(n + 1)]
+    for i in range(n):
+        for j in range(i + 1, n + 1):
+            left, _, right, _ = font.getbbox(" ".join(words[i:j]))
+            width[i][j] = right - left
+    # widest[m][j]: the narrowest widest line setting words[:j] on m lines; cut[m][j]:
+    # where its last line starts.
+    widest = [[float("inf")] * (n + 1) for _ in range(n + 1)]
+    cut = [[0] * (n + 1) for _ in range(n + 1)]
+    widest[0][0] = 0.0
+    for m in range(1, n + 1):
+        for j in range(m, n + 1):
+            for i in range(m - 1, j):
+                candidate = max(widest[m - 1][i], width[i][j])
+                if candidate < widest[m][j]:
+                    widest[m][j], cut[m][j] = candidate, i
+    out = []
+    for k in range(1, n + 1):
+        lines, j = [], n
+        for m in range(k, 0, -1):
+            lines.append(" ".join(words[cut[m][j]:j]))
+            j = cut[m][j]
+        out.append(lines[::-1])
+    return out
 
 
 def panorama_slice(panorama: np.ndarray, wall: Wall, light_mm: np.ndarray, radius_mm: float,

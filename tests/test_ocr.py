@@ -26,7 +26,7 @@ def test_a_sharp_phrase_reads_word_for_word(wall):
     assert ocr.words_read(wall, PHRASE) == 4
 
 
-@pytest.mark.parametrize("phrase", ["Dream big little star", "You are my sunshine"])
+@pytest.mark.parametrize("phrase", ["Dream\nbig\nlittle\nstar", "You are\nmy\nsunshine"])
 def test_a_short_word_on_a_line_of_its_own_reads(phrase):
     # Read as one block only, Tesseract loses the lone short line of these sharp
     # targets ("big" read as "rh", "my" as "sh"); read line by line it finds them.

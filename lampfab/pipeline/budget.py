@@ -42,8 +42,8 @@ DETAIL_SSIM = 0.85
 
 # Text reads while the blur (4 sigma) stays under this share of the letters' size (their
 # em): it then still leaves the gaps inside and between strokes.  Measured with
-# bench/text_blur.py (Tesseract on 16 phrases' targets blurred by Gaussians): 14 of 16
-# read whole up to 0.3 em, 2 at 0.4, none at 0.5.  A lamp's blur is no Gaussian and
+# bench/text_blur.py (Tesseract on 16 phrases' targets blurred by Gaussians): 15 of 16
+# read whole up to 0.3 em, 6 at 0.4, none at 0.5.  A lamp's blur is no Gaussian and
 # comes with haze and photon noise: four-word lamps whose blur was 0.27-0.29 em read 44
 # of their 48 words, so plan warns a little before 0.3.
 TEXT_BLUR_EM = 0.25

@@ -20,7 +20,8 @@ def summary(build: Build) -> None:
 def _key_figure(stage: str, figs: dict) -> str:
     """A stage's headline, in words."""
     if stage == "prepare":
-        sources = {k[:-len("_source")]: v for k, v in figs.items() if k.endswith("_source")}
+        # A phrase's own line breaks would break the summary's one line per stage.
+        sources = {k[:-len("_source")]: str(v).replace("\n", " / ") for k, v in figs.items() if k.endswith("_source")}
         return "; ".join(f"{v} on {', '.join(w for w in sources if sources[w] == v)}"
                          for v in dict.fromkeys(sources.values()))
     if stage == "plan":

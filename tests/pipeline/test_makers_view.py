@@ -50,13 +50,47 @@ def test_text_keeps_given_lines_and_refuses_nothing_or_too_much():
     assert targets.text_image("Joyeux anniversaire Léa 😀", 60, 80).max() > 0.5    # DejaVu has both
 
 
+@pytest.mark.parametrize("phrase", ["Sleep well my darling", "Make today a good day", "Keep calm and carry on",
+                                    "Dream big little star", "Hi"])
+def test_text_takes_the_line_breaks_that_make_the_largest_letters(phrase):
+    """Of every way of breaking the words into lines, the layout's letters are the
+    largest (by brute force over the cuts); breaking lines by their count of characters
+    set "Sleep well my darling" one word a line with letters a sixth smaller."""
+    import itertools
+
+    rows, cols = 48, 64
+    em, layout = targets.text_layout(phrase, rows, cols)
+    assert layout.split() == phrase.split()
+    words = phrase.split()
+    every = []
+    for k in range(len(words)):
+        for cuts in itertools.combinations(range(1, len(words)), k):
+            bounds = (0, *cuts, len(words))
+            lines = "\n".join(" ".join(words[a:b]) for a, b in zip(bounds, bounds[1:]))
+            every.append(targets.text_layout(lines, rows, cols)[0])
+    assert em == pytest.approx(max(every))
+    if phrase == "Sleep well my darling":
+        assert layout == "Sleep\nwell my\ndarling" and em > 1.15 * targets.text_layout("Sleep\nwell\nmy\ndarling",
+                                                                                          rows, cols)[0]
+
+
+def test_a_line_break_typed_into_make_s_text_breaks_the_line(tmp_path, tiny_profile):
+    """Make cannot hand a real line break from TEXT= to its recipes: "\\n" typed there is one."""
+    run = make("prepare", f"BUILD={tmp_path}", "NAME=lines", r"TEXT=Good\nnight", f"PROFILE={tiny_profile}")
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    assert json.loads((tmp_path / "lines" / "prepare.json").read_text())["figures"]["front_source"] == "text: Good\nnight"
+    summary = cli("summary", "--out", tmp_path / "lines", "--profile", tiny_profile).stdout
+    assert "text: Good / night on front" in summary.splitlines()[0], summary
+    assert cli("prepare", "--help").stdout.count("\\n") >= 1
+
+
 def test_text_lines_hold_each_line_and_only_its_neighbours_margin():
     """Each band of ``text_lines`` holds all of its line's ink: a wall's lines, read one
     by one, show every word whole."""
     rows, cols = 48, 64
     img = targets.text_image("Dream big little star", rows, cols)
     bands = targets.text_lines("Dream big little star", rows, cols)
-    assert len(bands) == targets.text_layout("Dream big little star", rows, cols)[1].count("\n") + 1 == 4
+    assert len(bands) == targets.text_layout("Dream big little star", rows, cols)[1].count("\n") + 1 == 3
     assert bands[0][0] == 0 and bands[-1][1] == rows
     lit = np.flatnonzero(img.any(axis=1))
     covered = set().union(*(range(a, b) for a, b in bands))
