@@ -78,7 +78,8 @@ def test_a_line_break_typed_into_make_s_text_breaks_the_line(tmp_path, tiny_prof
     """Make cannot hand a real line break from TEXT= to its recipes: "\\n" typed there is one."""
     run = make("prepare", f"BUILD={tmp_path}", "NAME=lines", r"TEXT=Good\nnight", f"PROFILE={tiny_profile}")
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
-    assert json.loads((tmp_path / "lines" / "prepare.json").read_text())["figures"]["front_source"] == "text: Good\nnight"
+    prepared = json.loads((tmp_path / "lines" / "prepare.json").read_text())["figures"]
+    assert prepared["front_source"] == "text: Good\nnight"
     summary = cli("summary", "--out", tmp_path / "lines", "--profile", tiny_profile).stdout
     assert "text: Good / night on front" in summary.splitlines()[0], summary
     assert cli("prepare", "--help").stdout.count("\\n") >= 1
@@ -161,6 +162,9 @@ def test_text_lamp_end_to_end(text_lamp):
     assert re.search(r"front r \S+ SSIM \S+ \d/2 words read", lines[-2]), lines[-2]
     assert re.search(r"OCR reads \d of its 6 words on the walls \(\d in the sharp targets\)",
                      (out / "report.html").read_text())
+    # The report says what light the lens was designed for, and what a bare LED would do.
+    page = (out / "report.html").read_text()
+    assert "traces it as a ball shining evenly in every direction; a bare LED facing up" in page
     # plan read them too: sharp, and blurred by its coarse design's LED kernels.
     plan = json.loads((out / "plan.json").read_text())["figures"]["sharpness"]["walls"]
     assert all(f["words"] == 2 and 0 <= f["perfect_words_read"] <= 2 and 0 <= f["target_words_read"] <= 2
