@@ -37,7 +37,7 @@ lamp: $(B)/report.html
 
 help:
 	@echo "make lamp TARGET=image.png [NAME=..] [PROFILE=draft|quick|default|...] [FAB=sla_resin|acrylic_cnc4|...] [LED=star3535|...]"
-	@echo "make lamp TEXT=\"Happy birthday\"      words instead of an image (build/text/)"
+	@printf '%s\n' 'make lamp TEXT="Happy birthday"      words instead of an image (build/text/); a typed \n breaks a line'
 	@echo "make lamp PANORAMA=examples/panorama.png   a 360° panorama wrapped around the room"
 	@echo "make <stage> TARGET=..   one stage and what it needs: prepare plan init optimize solid fabcheck export verify"
 	@echo "make test | make test-fast (without the slow tests) | make bench | make clean"

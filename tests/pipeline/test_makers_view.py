@@ -83,6 +83,7 @@ def test_a_line_break_typed_into_make_s_text_breaks_the_line(tmp_path, tiny_prof
     summary = cli("summary", "--out", tmp_path / "lines", "--profile", tiny_profile).stdout
     assert "text: Good / night on front" in summary.splitlines()[0], summary
     assert cli("prepare", "--help").stdout.count("\\n") >= 1
+    assert r"a typed \n breaks a line" in make("help").stdout
 
 
 def test_text_lines_hold_each_line_and_only_its_neighbours_margin():
