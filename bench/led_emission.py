@@ -26,7 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from lampfab import artifacts, image, metrics, room, trace, verify  # noqa: E402
+from lampfab import metrics, trace, verify  # noqa: E402
 
 
 def flat_facing_up(light_mm: np.ndarray, radius_mm: float):
@@ -46,19 +46,14 @@ def flat_facing_up(light_mm: np.ndarray, radius_mm: float):
 def figures(loaded: verify.Loaded, photons: int, seed: int) -> dict[str, list[dict]]:
     """{emitter: per wall {"wall", "r", "ssim", "share", "lower_half"}} for the ball and
     the flat disc facing up."""
-    design = loaded.design
-    light = np.asarray(design["light"]["position"], float)
-    radius = float(design["light"]["radius"])
-    ior = float(design["material"]["ior"])
-    shapes = [room.image_shape(w, 64) for w in loaded.walls]
+    light = loaded.design["light"]
+    flat = flat_facing_up(np.asarray(light["position"], float), float(light["radius"]))
     out = {}
-    for name, emitter in (("ball (designed for)", None), ("flat, facing up", flat_facing_up(light, radius))):
-        images, _ = trace.render_walls(loaded.scene, light, radius, ior, loaded.walls, shapes, photons, seed, 8,
-                                       emitter)
+    for name, emitter in (("ball (designed for)", None), ("flat, facing up", flat)):
+        images, _ = verify.render_design(loaded, 64, photons, seed, 8, emitter=emitter)
         rows = []
         for k, (wall, img) in enumerate(zip(loaded.walls, images)):
-            target = image.letterbox(artifacts.read_linear_png16(loaded.base / design["walls"][k]["target"]),
-                                     *img.shape)
+            target = loaded.target(k, img.shape)
             total = float(img.sum())
             rows.append({"wall": wall.name, "r": metrics.pearson(img, target), "ssim": metrics.ssim(img, target),
                          "share": total, "lower_half": float(img[img.shape[0] // 2:].sum()) / total if total else 0.0})

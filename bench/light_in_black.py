@@ -33,7 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from lampfab import artifacts, image, metrics, verify  # noqa: E402
+from lampfab import metrics, verify  # noqa: E402
 
 PLACES = {1: "inner layer", 2: "outer surface", 3: "flat faces"}
 SECTORS = ("right", "front", "left", "back")  # by u, from -45°, 90° each
@@ -123,7 +123,7 @@ def main() -> None:
     args = parser.parse_args()
     for build in args.builds:
         loaded = verify.load(build / "design.json")
-        design, walls = loaded.design, loaded.walls
+        walls = loaded.walls
         places = PLACES_BY_SECTOR if args.sectors else PLACES
         images, info = verify.render_design(loaded, 64, int(args.photons), 7, 8, 0.0,
                                             place_by_sector if args.sectors else place)
@@ -132,7 +132,7 @@ def main() -> None:
         print("|---|---|" + "---|" * (1 + len(places)))
         blacks = []
         for k, wall in enumerate(walls):
-            target = image.letterbox(artifacts.read_linear_png16(build / design["walls"][k]["target"]), *images[k].shape)
+            target = loaded.target(k, images[k].shape)
             black = target < BLACK * target.max()
             blacks.append(black)
             total = images[k]

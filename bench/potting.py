@@ -31,7 +31,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from lampfab import artifacts, image, metrics, verify  # noqa: E402
+from lampfab import metrics, verify  # noqa: E402
 
 SILICONE_IOR = 1.41  # clear potting silicones (e.g. Sylgard 184) measure n 1.40-1.43 near 589 nm
 EDGE_MM = 0.5  # a hit this close to the base's or the top's plane is on a flat face, not the cavity's
@@ -67,8 +67,7 @@ def figures(loaded: verify.Loaded, ior, photons: int, seed: int) -> list[dict]:
     point, _, led, led_info, kernels = verify.render_both(loaded, 64, photons, seed, 8, ior)
     out = []
     for k, wall in enumerate(loaded.walls):
-        target = image.letterbox(artifacts.read_linear_png16(loaded.base / loaded.design["walls"][k]["target"]),
-                                 *led[k].shape)
+        target = loaded.target(k, led[k].shape)
         ref = verify._led_reference(kernels, k, wall, target, point[k], led[k], led_info["ghosts"][k],
                                     led_info["direct_noise"][k], {})
         out.append({"wall": wall.name, "blur": ref["led_blur_mm"],

@@ -44,6 +44,12 @@ class Loaded:
     faces: np.ndarray     # (m, 3) int
     scene: object         # trace.MeshScene
 
+    def target(self, k: int, shape: tuple[int, int]) -> np.ndarray:
+        """Wall ``k``'s prepared target letterboxed to (rows, cols) ``shape``: float64 linear."""
+        from . import image
+
+        return image.letterbox(artifacts.read_linear_png16(self.base / self.design["walls"][k]["target"]), *shape)
+
 
 def load(design_path) -> Loaded:
     from . import trace
@@ -58,23 +64,23 @@ def load(design_path) -> Loaded:
 
 def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bounces: int,
                   light_radius_mm: float | None = None, reflection_place=None,
-                  kernel_moments=None, ior=None) -> tuple[list[np.ndarray], dict]:
+                  kernel_moments=None, ior=None, emitter=None) -> tuple[list[np.ndarray], dict]:
     """Trace the design's STL onto its walls (``loaded.walls``).  Returns (per-wall flux
     images, ``room.image_shape(wall, image_px)`` float64, share of the emitted light per
     pixel; info as ``trace.render_walls``'s).
 
     ``light_radius_mm`` None: the design's own light (its LED, a beam with its spread); a
     number: a ball of that radius (0: the point light; a beam: parallel).
-    ``reflection_place``, ``kernel_moments``, ``ior``: see ``trace.render_walls``; ``ior``
-    None: the design's material in air."""
+    ``reflection_place``, ``kernel_moments``, ``ior``, ``emitter`` (another light in
+    place of the design's): see ``trace.render_walls``; ``ior`` None: the design's
+    material in air."""
     from . import trace
 
     design, walls = loaded.design, loaded.walls
     shapes = [room.image_shape(w, image_px) for w in walls]
     radius = design["light"]["radius"] if light_radius_mm is None else light_radius_mm
     length = design["light"].get("length", 0.0) if light_radius_mm is None else 0.0
-    emitter = None
-    if design["light"].get("type") == "collimated":
+    if emitter is None and design["light"].get("type") == "collimated":
         from .panel.geometry import emitter_from_json
 
         emitter = emitter_from_json(design["light"], divergence=light_radius_mm is None)
@@ -119,8 +125,6 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
     blur).  With ``mitsuba_photons`` Mitsuba's light tracer renders the lens too
     (``mitsuba_reference``): ``mitsuba_pearson`` (LED) and ``mitsuba_point_pearson``.
     """
-    from . import image
-
     out_dir = Path(out_dir)
     loaded = load(design_path)
     design = loaded.design
@@ -132,8 +136,7 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
                "led_radius_mm": design["light"]["radius"], "photons": photons,
                "real_light": _real_light(design["light"])}
     for k, wall in enumerate(walls):
-        target_path = loaded.base / design["walls"][k]["target"]
-        target = image.letterbox(artifacts.read_linear_png16(target_path), *point[k].shape)
+        target = loaded.target(k, point[k].shape)
         sharp = metrics.compare(point[k], target)
         blur = metrics.compare(led[k], target)
         ghosts = info["ghosts"][k]
