@@ -18,6 +18,7 @@ Both return what ``image.load_target`` + ``image.letterbox`` return for a pictur
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -71,6 +72,9 @@ def _drawn(layout: str, em_px: float, rows: int, cols: int):
     return big
 
 
+# Pure, and asked again for every reading of a wall (``text_lines``) and every picture of
+# the phrase: a phrase of 40 words takes half a second to lay out.
+@functools.lru_cache(maxsize=64)
 def text_layout(text: str, rows: int, cols: int) -> tuple[float, str]:
     """How ``text_image`` sets ``text`` in (rows, cols): (the font's size, its em, in
     pixels; the lines joined by newlines).  The user's own line breaks are kept;
