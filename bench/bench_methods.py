@@ -48,10 +48,9 @@ def measure(build, inner, runner, heights, targets) -> dict:
     s = solid.build_solid(build.cylinder, made, build.design.optimize.tessellation, *inner, build.fab.mount_radius_mm)
     scene = trace.MeshScene(s.vertices, s.faces)
     out = {}
-    for prefix, radius in (("", build.led.radius_mm), ("point_", 0.0)):
-        images, info = trace.render_walls(scene, build.light, radius, build.fab.ior, build.walls,
-                                          [t.shape for t in targets], build.design.verify.photons, seed=99,
-                                          light_length_mm=build.led.length_mm if radius else 0.0)
+    for prefix, source in (("", build.source), ("point_", build.source.point())):
+        images, info = trace.render_walls(scene, source, build.fab.ior, build.walls,
+                                          [t.shape for t in targets], build.design.verify.photons, seed=99)
         figs = [metrics.compare(i, t) for i, t in zip(images, targets)]
         out.update({f"{prefix}r": min(f["pearson"] for f in figs), f"{prefix}ssim": min(f["ssim"] for f in figs),
                     f"{prefix}r_walls": [f["pearson"] for f in figs], f"{prefix}ssim_walls": [f["ssim"] for f in figs]})

@@ -1,56 +1,47 @@
 #!/usr/bin/env python3
-"""What a bare LED on its board would project through a made lens, against the glowing
-ball lampfab designs for.
+"""What a lens projects with the LED it was designed for, against the other kind of LED
+of the same size at the same place: a glowing ball and a flat LED facing up.
 
     .venv/bin/python bench/led_emission.py build/apple [build/text ...] [--photons 4e6]
 
-lampfab traces a ball-shaped LED (``shape = "sphere"``) as a glowing ball: the same
-light in every direction, the lamp's walls lit from every elevation the lens covers.
-An LED package on a flat board is a flat Lambertian emitter: facing up, as the board
-sits on its stalk under the lens, it sends light upward in proportion to the cosine of
-the angle from straight up, nothing sideways and nothing down.  This script traces each
-build's exported STL as verify does (64 px, stratified photons) with the build's own
-ball LED, and with a flat disc of the same radius at the same place facing up, and per
-wall prints the render's r and SSIM against the target, the wall's light (as a share of
-the emitted light) and the share of it in the picture's lower half.
+An LED in a small opal ball (``shape = "sphere"``) shines the same every way, the lamp's
+walls lit from every elevation the lens covers.  An LED package on its flat board
+(``shape = "disc"``) is a flat Lambertian emitter: facing up, as the board sits on its
+stalk under the lens, it sends light upward in proportion to the cosine of the angle
+from straight up, nothing sideways and nothing down.  A lens designed for one and lit
+by the other shows what choosing the wrong part costs.  This script traces each build's
+exported STL as verify does (64 px, stratified photons) with the build's own LED and
+with the other shape, and per wall prints the render's r and SSIM against the target,
+the wall's light (as a share of the emitted light) and the share of it in the picture's
+lower half.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
-
-import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from lampfab import metrics, trace, verify  # noqa: E402
+from lampfab.source import Source  # noqa: E402
 
-
-def flat_facing_up(light_mm: np.ndarray, radius_mm: float):
-    """``trace.render_walls``'s ``emitter``: a Lambertian disc of ``radius_mm`` centred on
-    ``light_mm``, facing +z (up the lamp's axis): stratified cosine-weighted directions,
-    each from a random point of the disc."""
-    def emit(mi, n: int, seed: int):
-        square, count = trace.stratified_square(mi, n, 1.0, seed)
-        d = mi.warp.square_to_cosine_hemisphere(square)
-        rng = trace.direction_rng(mi, count, seed)
-        disc = mi.warp.square_to_uniform_disk_concentric(mi.Point2f(rng.next_float32(), rng.next_float32()))
-        x, y, z = (float(c) for c in light_mm)
-        return mi.Point3f(x + radius_mm * disc.x, y + radius_mm * disc.y, z), mi.Vector3f(d.x, d.y, d.z)
-    return emit
+OTHER = {"sphere": "disc", "disc": "sphere"}
+NAMES = {"sphere": "ball", "disc": "flat, facing up"}
 
 
 def figures(loaded: verify.Loaded, photons: int, seed: int) -> dict[str, list[dict]]:
-    """{emitter: per wall {"wall", "r", "ssim", "share", "lower_half"}} for the ball and
-    the flat disc facing up."""
-    light = loaded.design["light"]
-    flat = flat_facing_up(np.asarray(light["position"], float), float(light["radius"]))
+    """{LED: per wall {"wall", "r", "ssim", "share", "lower_half"}} for the design's own
+    LED and the other shape of the same radius."""
+    own = Source.from_json(loaded.design["light"])
+    other = dataclasses.replace(own, shape=OTHER[own.shape])
     out = {}
-    for name, emitter in (("ball (designed for)", None), ("flat, facing up", flat)):
-        images, _ = verify.render_design(loaded, 64, photons, seed, 8, emitter=emitter)
+    for name, source in ((f"{NAMES[own.shape]} (designed for)", own), (NAMES[other.shape], other)):
+        images, _ = verify.render_design(loaded, 64, photons, seed, 8,
+                                         emitter=lambda mi, n, s, source=source: trace.emit(mi, source, n, s))
         rows = []
         for k, (wall, img) in enumerate(zip(loaded.walls, images)):
             target = loaded.target(k, img.shape)
@@ -68,8 +59,9 @@ def main() -> None:
     args = parser.parse_args()
     for build in args.builds:
         loaded = verify.load(build / "design.json")
-        if loaded.design["light"].get("type") == "collimated" or loaded.design["light"].get("length", 0.0):
-            print(f"\n{build}: not a ball-shaped LED; skipped")
+        light = loaded.design["light"]
+        if light.get("type") == "collimated" or Source.from_json(light).shape not in OTHER:
+            print(f"\n{build}: neither a ball nor a flat LED; skipped")
             continue
         print(f"\n{build}: LED radius {loaded.design['light']['radius']:g} mm, {args.photons / 1e6:g} M photons each")
         print("| wall | LED | r | SSIM | light on the wall | of it in the lower half |")

@@ -34,6 +34,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from lampfab import metrics, verify  # noqa: E402
+from lampfab.source import Source  # noqa: E402
 
 PLACES = {1: "inner layer", 2: "outer surface", 3: "flat faces"}
 SECTORS = ("right", "front", "left", "back")  # by u, from -45°, 90° each
@@ -87,7 +88,7 @@ def lens_cells(loaded: verify.Loaded, blacks: list[np.ndarray], photons: int, se
         exits.append(trace.to_numpy(o)[direct])
         pixels.append(trace.pixel_hits(mi, walls, shapes, o, d)[direct])
 
-    o, d = trace.emit(mi, np.asarray(design["light"]["position"], float), 0.0, photons, seed)
+    o, d = trace.emit(mi, Source.from_json(design["light"]).point(), photons, seed)
     trace.propagate(mi, loaded.scene.scene, o, d, float(design["material"]["ior"]), seed, 8, on_escape)
     points, pixel = np.concatenate(exits), np.concatenate(pixels)
     u = np.degrees(np.arctan2(points[:, 1], points[:, 0])) % 360.0
@@ -125,7 +126,7 @@ def main() -> None:
         loaded = verify.load(build / "design.json")
         walls = loaded.walls
         places = PLACES_BY_SECTOR if args.sectors else PLACES
-        images, info = verify.render_design(loaded, 64, int(args.photons), 7, 8, 0.0,
+        images, info = verify.render_design(loaded, 64, int(args.photons), 7, 8, True,
                                             place_by_sector if args.sectors else place)
         print(f"\n{build}: share of each wall's light / of it in the target's black / the wall's SSIM without it")
         print("| wall | SSIM | never reflected | " + " | ".join(f"off the {name}" for name in places.values()) + " |")

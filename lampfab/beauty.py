@@ -13,17 +13,20 @@ cleaned by Intel Open Image Denoise, guided by the surfaces' albedo and normals.
 
 from __future__ import annotations
 
+import dataclasses
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from .room import Wall
+from .source import Source
 
 WALL_GLOW = 0.85         # radiance of the brightest part of a projection: just under display white
 ROOM_GREY = 0.4          # albedo of walls, floor and table: a mid-grey matte paint
 AMBIENT = 0.03           # dim sky through the room's open back and ceiling: shows the room
 LED_RADIANCE = 50.0      # the LED: overexposed, as in a photo of a lamp
+VISIBLE_LED_RADIUS_MM = 0.5  # a point light is drawn this large: it glows in the picture
 # The walls' light is traced onto each wall this many times as wide and tall as its picture
 # (centred on it): the light that misses the pictures lands there too.
 ROOM_WALL_SCALE = 3
@@ -73,6 +76,12 @@ def room_walls(walls: list[Wall]) -> list[Wall]:
             for w in walls]
 
 
+def _visible(led: Source) -> Source:
+    """The LED as the beauty shot draws it: at least ``VISIBLE_LED_RADIUS_MM`` across,
+    so that a point still glows in the picture."""
+    return dataclasses.replace(led, radius_mm=max(led.radius_mm, VISIBLE_LED_RADIUS_MM))
+
+
 def _scene(mi, folder: Path, vertices: np.ndarray, faces: np.ndarray, ior: float, led: dict,
            walls: list[Wall], light: list[np.ndarray], floor_z: float) -> dict:
     """The room: the lens as glass, the glowing LED, each wall lit by its traced ``light``
@@ -84,8 +93,7 @@ def _scene(mi, folder: Path, vertices: np.ndarray, faces: np.ndarray, ior: float
     grey = {"type": "diffuse", "reflectance": ROOM_GREY}
     scene = {"type": "scene",
              "sky": {"type": "constant", "radiance": {"type": "spectrum", "value": AMBIENT}},
-             "led": led_emitter(np.asarray(led["position"], float), max(float(led["radius"]), 0.5),
-                                float(led.get("length", 0.0)), LED_RADIANCE),
+             "led": led_emitter(mi, _visible(Source.from_json(led)), LED_RADIANCE),
              "lens": {"type": "ply", "filename": _ply(vertices, faces, folder), "face_normals": True,
                       "bsdf": {"type": "dielectric", "int_ior": float(ior), "ext_ior": 1.0}},
              "floor": {"type": "rectangle", "bsdf": grey,

@@ -3,8 +3,8 @@
 verify traces the exported lens with lampfab's own photon tracer (``trace``).  Here
 Mitsuba's ``ptracer`` renders the same ``design.json`` instead: the lens read back from
 its STL as a ``dielectric`` of the design's refractive index with flat facet normals
-(what is made), the LED as an emitter of its real shape and size (a sphere, or a
-filament's cylinder; or a point light), one diffuse wall at a time.  Mitsuba handles Fresnel at every surface, total internal
+(what is made), the LED as an emitter of its real shape and size (a sphere, a
+filament's cylinder, a flat disc facing up; or its point light), one diffuse wall at a time.  Mitsuba handles Fresnel at every surface, total internal
 reflection and every bounce in its own code, so agreement says the walls verify shows
 are the walls the lamp will light, not an artefact of one tracer.
 
@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from .room import Wall
+from .source import Source
 
 # The camera stands this far on the lamp's side of the lens's nearest point: the lens
 # must lie wholly behind it, out of its view.
@@ -31,6 +32,10 @@ CAMERA_CLEARANCE_MM = 10.0
 # Interactions followed per light path: verify follows 8 interface crossings; a path
 # then needs one more vertex on the wall and room to spare for internal reflections.
 MAX_DEPTH = 12
+
+# A flat LED's point light, as a disc this small: its blur on a wall 1 m away (about
+# 0.01 mm x 1000 / 45) is a thousandth of a 28 mm pixel.
+POINT_DISC_RADIUS_MM = 0.01
 
 
 def _lens(mi, vertices: np.ndarray, faces: np.ndarray, ior: float):
@@ -46,19 +51,27 @@ def _lens(mi, vertices: np.ndarray, faces: np.ndarray, ior: float):
     return mesh
 
 
-def light(light_mm: np.ndarray, radius_mm: float, length_mm: float = 0.0, radiance: float = 1.0) -> dict:
-    """The LED as a Mitsuba emitter: a point (``radius_mm`` 0), a glowing sphere, or with
-    ``length_mm`` a glowing cylinder on the lamp axis (a filament; open ends, as
-    ``trace.emit``'s).  Its surface is black: light coming back to it is absorbed."""
-    if radius_mm <= 0:
-        return {"type": "point", "position": light_mm.tolist(), "intensity": {"type": "spectrum", "value": radiance}}
+def light(mi, source: Source, radiance: float = 1.0) -> dict:
+    """The LED ``source`` as a Mitsuba emitter: a point light (a ball's or a filament's
+    point), a glowing sphere, a glowing cylinder on the lamp axis (a filament; open ends,
+    as ``trace.emit``'s), or a glowing disc facing up (Mitsuba's area lights shine from
+    the front only, as a Lambertian disc does; its point is a disc of
+    ``POINT_DISC_RADIUS_MM``: Mitsuba has no point light with a cosine beam).  Its
+    surface is black: light coming back to it is absorbed."""
+    centre = source.position
     body = {"bsdf": {"type": "diffuse", "reflectance": 0.0},
             "emitter": {"type": "area", "radiance": {"type": "spectrum", "value": radiance}}}
-    if length_mm > 0:
-        half = np.array([0.0, 0.0, length_mm / 2])
-        return {"type": "cylinder", "p0": (light_mm - half).tolist(), "p1": (light_mm + half).tolist(),
-                "radius": float(radius_mm), **body}
-    return {"type": "sphere", "center": light_mm.tolist(), "radius": float(radius_mm), **body}
+    if source.facing_up:
+        r = max(source.radius_mm, POINT_DISC_RADIUS_MM)
+        return {"type": "disk", "to_world": mi.ScalarTransform4f().translate(centre.tolist()).scale([r, r, 1.0]),
+                **body}
+    if source.radius_mm <= 0:
+        return {"type": "point", "position": centre.tolist(), "intensity": {"type": "spectrum", "value": radiance}}
+    if source.shape == "cylinder":
+        half = np.array([0.0, 0.0, source.length_mm / 2])
+        return {"type": "cylinder", "p0": (centre - half).tolist(), "p1": (centre + half).tolist(),
+                "radius": float(source.radius_mm), **body}
+    return {"type": "sphere", "center": centre.tolist(), "radius": float(source.radius_mm), **body}
 
 
 def wall_camera(mi, wall: Wall, vertices: np.ndarray, shape: tuple[int, int], spp: int) -> dict:
@@ -79,9 +92,8 @@ def wall_camera(mi, wall: Wall, vertices: np.ndarray, shape: tuple[int, int], sp
             "sampler": {"type": "independent", "sample_count": spp}}
 
 
-def render(vertices: np.ndarray, faces: np.ndarray, ior: float, light_mm: np.ndarray, radius_mm: float,
-           length_mm: float, walls: list[Wall], shapes: list[tuple[int, int]], photons: int,
-           seed: int) -> list[np.ndarray]:
+def render(vertices: np.ndarray, faces: np.ndarray, ior: float, source: Source, walls: list[Wall],
+           shapes: list[tuple[int, int]], photons: int, seed: int) -> list[np.ndarray]:
     """Mitsuba's ptracer picture of each wall: (rows, cols) float64 per wall, proportional
     to its flux per pixel.  ``vertices`` (n, 3) mm and ``faces`` (m, 3): the closed lens
     with outward normals; the LED as ``light``'s; about ``photons`` light paths per wall."""
@@ -94,7 +106,7 @@ def render(vertices: np.ndarray, faces: np.ndarray, ior: float, light_mm: np.nda
         spp = max(1, int(round(photons / (shape[0] * shape[1]))))
         scene = mi.load_dict({
             "type": "scene", "integrator": {"type": "ptracer", "max_depth": MAX_DEPTH, "hide_emitters": True},
-            "lens": lens, "light": light(light_mm, radius_mm, length_mm),
+            "lens": lens, "light": light(mi, source),
             "wall": {"type": "rectangle", "to_world": _rectangle(mi, wall),
                      "bsdf": {"type": "diffuse", "reflectance": 1.0}},
             "camera": wall_camera(mi, wall, vertices, shape, spp)})

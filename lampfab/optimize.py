@@ -24,8 +24,9 @@ from . import lens, losses, scene, surface
 from .concavity import hollow_penalty
 from .errors import LampfabError
 from .limits import Limits
-from .profile import Led, Optimize
+from .profile import Optimize
 from .room import Wall
+from .source import Source
 
 # Losses above this multiple of the best loss so far (same view, same level) count as
 # an explosion (the source's GD diverges this way).
@@ -148,20 +149,20 @@ class Optimizer:
     """The loop every method shares; a method supplies ``gradient`` and ``render``."""
 
     def __init__(self, cyl: surface.Cylinder, inner_vertices: np.ndarray, inner_faces: np.ndarray,
-                 light_mm: np.ndarray, ior: float, walls: list[Wall], targets: list[np.ndarray],
-                 opt: Optimize, limits: Limits, led: Led | None = None):
+                 source: Source, ior: float, walls: list[Wall], targets: list[np.ndarray],
+                 opt: Optimize, limits: Limits):
         if opt.backtrack and opt.schedule != "joint":
             # One view per step: consecutive losses are of different walls, and every
             # step would look like a rise (the profile loader refuses this too).
             raise ValueError("backtrack needs schedule 'joint'")
         self.cyl, self.inner_v, self.inner_f = cyl, inner_vertices, inner_faces
-        self.light, self.ior, self.walls, self.opt = light_mm, ior, walls, opt
+        self.ior, self.walls, self.opt = ior, walls, opt
         self.targets = [np.asarray(t, np.float64) for t in targets]
         self.shapes = [t.shape for t in self.targets]
         self.limits = limits
-        # The light whose pictures the loss compares with the targets: the LED, or the
-        # ideal point (None).
-        self.led = led
+        # The light whose pictures the loss compares with the targets: the LED, or its
+        # beam from the ideal point.
+        self.source = source
         self._scene_grid = None
 
     def gradient(self, heights: np.ndarray, views: list[int], seed: int, level: int = -1) -> tuple[float, np.ndarray]:
@@ -378,7 +379,7 @@ class PtracerOptimizer(Optimizer):
         if self._scene_grid == heights.shape:
             return
         verts, faces = self._mesh(heights)
-        self.scene, self.params, self.key = scene.build(verts, faces, self.light, self.ior, self.walls,
+        self.scene, self.params, self.key = scene.build(verts, faces, self.source.position, self.ior, self.walls,
                                                         self.shapes, self.opt.spp)
         self.static = verts  # inner layer and cap centres never move
         self.fine = surface.fine_shape(*heights.shape, self.opt.tessellation)

@@ -172,7 +172,7 @@ class Fabrication:
     path: str = ""
 
 
-LED_SHAPES = ("sphere", "cylinder")
+LED_SHAPES = ("sphere", "cylinder", "disc")  # source.SHAPES
 
 
 @dataclass(frozen=True)
@@ -182,8 +182,10 @@ class Led:
     name: str = _spec("", doc="profile name")
     part: str = _spec("", doc="what to buy, in words")
     shape: str = _spec("sphere", choices=LED_SHAPES,
-                       doc="sphere: a glowing ball; cylinder: a filament standing on the lamp axis")
-    radius_mm: float = _spec(1.5, 0.0, 20.0, doc="emitting radius (the ball's, or the filament's); 0: a point")
+                       doc="sphere: a ball glowing every way; cylinder: a filament standing on the lamp axis; "
+                           "disc: a flat emitter facing up (a package on its board), nothing below the horizon")
+    radius_mm: float = _spec(1.5, 0.0, 20.0, doc="emitting radius (the ball's, the filament's or the disc's); "
+                                                   "0: a point")
     length_mm: float = _spec(0.0, 0.0, 100.0, doc="emitting length of a filament (cylinder only)")
     board_diameter_mm: float = _spec(20.0, 1.0, 200.0, doc="the board or holder that must pass through the bore")
     flux_lm: float = _spec(100.0, 0.1, 100_000.0, doc="typical luminous flux (lumen) at its usual current")
@@ -301,9 +303,19 @@ def load_led(name_or_path: str) -> Led:
     led = _build(Led, _read_toml(path), path, "")
     if led.shape == "cylinder" and not led.length_mm > 0:
         raise LampfabError(f"{path}: length_mm {led.length_mm}: a filament (shape cylinder) needs a length above 0")
-    if led.shape == "sphere" and led.length_mm:
+    if led.shape != "cylinder" and led.length_mm:
         raise LampfabError(f"{path}: length_mm applies only to shape = \"cylinder\" (a filament)")
     return dataclasses.replace(led, name=led.name or path.stem, path=str(path))
+
+
+def check_led_for(design: Design, led: Led) -> None:
+    """Refuse an LED that cannot light the design's walls: a flat one facing up sends no
+    light below the horizon, where the floor's picture must come from (the lens's back
+    sector bends the downward light onto it; the upward light is the other walls')."""
+    if led.shape == "disc" and "floor" in design.room.walls:
+        raise LampfabError(f"{led.path}: a flat LED facing up (shape disc) sends no light below the horizon, and "
+                           f"{design.path} has a floor picture ([room] walls): choose an LED that shines all round "
+                           f"(LED=filament26) or leave out the floor")
 
 
 def with_bore_for(fab: Fabrication, led: Led) -> Fabrication:

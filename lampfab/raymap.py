@@ -1,9 +1,8 @@
 """Ray mapping: the outer surface that lands each photon where it should.
 
 The light inside the glass does not depend on the outer surface.  Photons leave the LED
-on a stratified grid of directions (uniform on the sphere, jittered with a seed) and are
-refracted once at the inner layer's facets, in float64, with the Fresnel transmission
-as their weight (``stratified_photons``).
+on a stratified grid of directions (uniform on the sphere, jittered), weighted by its
+beam, and refract at the inner layer's facets in float64 (``stratified_photons``).
 
 ``RayMap.fit`` then finds the heightmap whose tessellation (the STL's facets) sends
 each photon to its goal on its wall: Levenberg-Marquardt on
@@ -28,6 +27,7 @@ from scipy.sparse.linalg import spsolve
 from . import surface
 from .limits import Limits
 from .room import Wall
+from .source import Source
 from .tolerances import RAY_EPSILON_MM
 
 # Radial step of the central differences (mm): float64 landing positions keep ~1e-9 mm,
@@ -107,11 +107,12 @@ def refract(direction: np.ndarray, normal: np.ndarray, eta: float) -> tuple[np.n
     return out / np.linalg.norm(out, axis=1, keepdims=True), cos_i, sin2_t >= 1.0
 
 
-def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, light_mm: np.ndarray,
+def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, source: Source,
                        ior: float, n_azimuth: int, n_elevation: int, seed: int) -> Photons:
     """One photon per cell of an (azimuth, sin elevation) grid, jittered inside its cell,
     refracted into the glass at the inner layer: inner_vertices (n, 3) mm, inner_faces
-    (m, 3) int wound outward (away from the light), light_mm (3,) the LED's centre."""
+    (m, 3) int wound outward (away from the light), ``source`` the LED (centre, beam;
+    the grid covers the sphere: below a flat LED's horizon, weightless photons)."""
     from .trace import first_hits
 
     rng = np.random.default_rng(seed)
@@ -122,7 +123,7 @@ def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, ligh
     sin_el = -1.0 + 2.0 * s / n_elevation
     cos_el = np.sqrt(1.0 - sin_el**2)
     emitted = np.stack([cos_el * np.cos(phi), cos_el * np.sin(phi), sin_el], axis=1)
-    start = np.broadcast_to(np.asarray(light_mm, np.float64), emitted.shape)
+    start = np.broadcast_to(source.position, emitted.shape)
     valid, prim, t = first_hits(inner_vertices, inner_faces, start, emitted)
     if valid.mean() < 0.99:  # more than the few that slip between facets (below)
         raise ValueError("photons leave the inner layer without crossing it: the light is not inside it")
@@ -135,7 +136,7 @@ def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, ligh
     facing = np.einsum("ij,ij->i", emitted, normal) >= 0
     along = np.where(facing[:, None], normal, -normal)  # the facet normal on the glass side
     inside, cos_i, _ = refract(emitted, along, ior)
-    transmitted = fresnel_transmission(cos_i, ior)
+    transmitted = fresnel_transmission(cos_i, ior) * source.intensity(emitted)
     origin = start + t[:, None] * emitted + RAY_EPSILON_MM * inside
     return Photons(origin, inside, emitted, transmitted / len(valid), np.stack([a, s], axis=1),
                    n_azimuth, n_elevation)

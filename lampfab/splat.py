@@ -75,7 +75,7 @@ class SplatOptimizer(Optimizer):
         """Photons in the glass, after the inner layer, with their flux
         (``trace.into_glass``: refracted, and some reflected across the cavity).
 
-        They leave the ideal point, or with ``led`` the LED's emitting surface, so that
+        They leave the ``source``: the ideal point, or the LED's emitting surface, so that
         the loss sees the blurred pictures the walls will really get.  Designing for the
         LED traded the point light's pictures for the LED's on every image measured
         (bench/RESULTS.md, "Designing for the LED").
@@ -94,8 +94,7 @@ class SplatOptimizer(Optimizer):
         if (seed, count) == self._photon_key:
             return
         mi = self.mi
-        radius, length = (self.led.radius_mm, self.led.length_mm) if self.led else (0.0, 0.0)
-        o, d = emit(mi, self.light, radius, count, seed, length)
+        o, d = emit(mi, self.source, count, seed)
         self.n_photons = dr.width(d)
         self.o_glass, self.d_glass, self.w_glass = into_glass(mi, self.inner.scene, o, d, self.ior,
                                                               CAVITY_REFLECTIONS_EVERY)

@@ -51,14 +51,15 @@ def error_field(cyl: surface.Cylinder, shape: tuple[int, int], correlation_mm: f
     return field / np.abs(field).max()
 
 
-def study(cyl: surface.Cylinder, heights: np.ndarray, lens_mesh, light_mm: np.ndarray, ior: float,
+def study(cyl: surface.Cylinder, heights: np.ndarray, lens_mesh, source, ior: float,
           walls: list[Wall], targets: list[np.ndarray], photons: int, seed: int, max_bounces: int,
           profile_error_mm: float) -> dict:
     """Trace the lens at each amplitude of one error field; r against each target.
 
     heights (nu, nv) mm; ``lens_mesh(heights)`` -> ((n, 3) mm, (m, 3) int): the closed lens
-    to trace, wound outward (the made solid: its bore changes the ghosts); light (3,) mm
-    (a point light); targets: one (rows, cols) image per wall, the render's shape.
+    to trace, wound outward (the made solid: its bore changes the ghosts); ``source`` the
+    light to trace (a ``source.Source``: the LED's beam from a point, so that the study
+    sees the surface's errors, not the LED's blur); targets: one (rows, cols) image per wall, the render's shape.
     Returns {"amplitudes_mm": [0, ...] (ascending), "walls": {name: [r per amplitude]},
     "max_drop": [largest r drop over the walls per amplitude], "allowance_mm": largest
     amplitude tried whose drop stays within R_DROP, "allowance_at_least": True when even
@@ -73,7 +74,7 @@ def study(cyl: surface.Cylinder, heights: np.ndarray, lens_mesh, light_mm: np.nd
     per_wall = {w.name: [] for w in walls}
     for a in amplitudes:
         verts, faces = lens_mesh(heights + a * field)
-        images, _ = trace.render_walls(trace.MeshScene(verts, faces), light_mm, 0.0, ior, walls, shapes,
+        images, _ = trace.render_walls(trace.MeshScene(verts, faces), source, ior, walls, shapes,
                                        photons, seed, max_bounces)
         for wall, img, target in zip(walls, images, targets):
             per_wall[wall.name].append(metrics.pearson(img, target))

@@ -59,10 +59,11 @@ def to_numpy(v) -> np.ndarray:
     return np.stack([v.x.numpy(), v.y.numpy(), v.z.numpy()], 1).astype(np.float64)
 
 
-def emit(mi, light_mm: np.ndarray, radius_mm: float, n: int, seed: int, length_mm: float = 0.0):
-    """About ``n`` photons from the LED: an isotropic point (``radius_mm`` 0), a
-    Lambertian sphere of ``radius_mm``, or with ``length_mm`` a Lambertian cylinder (a
-    filament standing on the lamp axis, centred on ``light_mm``; its ends do not glow).
+def emit(mi, source, n: int, seed: int):
+    """About ``n`` photons from the LED ``source`` (a ``source.Source``): a point with
+    its shape's beam (``radius_mm`` 0), a Lambertian sphere, a Lambertian cylinder (a
+    filament standing on the lamp axis, centred on the position; its ends do not glow),
+    or a Lambertian disc facing up.
 
     Stratified, not independent: a pixel's count then varies far less than Poisson's
     sqrt(count) (the clock's SSIM at 4 M photons: 0.77-0.81 stratified, 0.63-0.65
@@ -74,23 +75,35 @@ def emit(mi, light_mm: np.ndarray, radius_mm: float, n: int, seed: int, length_m
     and trace as fast as the point light's (random directions per point took the
     refinement's steps from 1.1 to 2 s).  A filament, brightest seen side-on, takes its
     points stratified over its surface (azimuth and height from the stratified
-    direction, whose z is uniform over [-1, 1]) and cosine-weighted directions.
+    direction, whose z is uniform over [-1, 1]) and cosine-weighted directions.  A disc's
+    directions are stratified over the upper hemisphere, cosine-weighted, each from a
+    random point of the disc (every point of a flat Lambertian emitter sends the same
+    beam).
     Returns Dr.Jit (origins, unit directions) of about ``n`` photons.
     """
     import drjit as dr
 
-    d, count = stratified_sphere(mi, n, seed)
-    o = mi.Point3f(*[float(c) for c in light_mm])
-    if radius_mm <= 0:
+    o = mi.Point3f(*source.position_mm)
+    if source.facing_up:
+        square, count = stratified_square(mi, n, 1.0, seed)
+        local = mi.warp.square_to_cosine_hemisphere(square)
+        d = mi.Vector3f(local.x, local.y, local.z)
+    else:
+        d, count = stratified_sphere(mi, n, seed)
+    if source.radius_mm <= 0:
         return dr.zeros(mi.Point3f, count) + o, d
     rng = direction_rng(mi, count, seed)
     sample = mi.Point2f(rng.next_float32(), rng.next_float32())
-    if length_mm <= 0:
+    radius = source.radius_mm
+    if source.facing_up:
+        disc = mi.warp.square_to_uniform_disk_concentric(sample)
+        return o + mi.Vector3f(radius * disc.x, radius * disc.y, dr.zeros(mi.Float, count)), d
+    if source.shape == "sphere":
         disc = mi.warp.square_to_uniform_disk_concentric(sample)
         lift = dr.safe_sqrt(1.0 - dr.squared_norm(disc))
-        return o + radius_mm * mi.Frame3f(d).to_world(mi.Vector3f(disc.x, disc.y, lift)), d
+        return o + radius * mi.Frame3f(d).to_world(mi.Vector3f(disc.x, disc.y, lift)), d
     normal = dr.normalize(mi.Vector3f(d.x, d.y, 0.0))
-    origin = o + radius_mm * normal + mi.Vector3f(0.0, 0.0, 0.5 * length_mm * d.z)
+    origin = o + radius * normal + mi.Vector3f(0.0, 0.0, 0.5 * source.length_mm * d.z)
     # Cosine-weighted about the surface's normal: a Lambertian emitter.
     local = mi.warp.square_to_cosine_hemisphere(sample)
     return origin, mi.Frame3f(normal).to_world(local)
@@ -319,16 +332,15 @@ def _noise_sample(counts_by_parity: np.ndarray, traced_by_parity: list[int]) -> 
     return math.sqrt(na * nb) * (counts_by_parity[0] / na - counts_by_parity[1] / nb)
 
 
-def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float, ior,
-                 walls: list[Wall], shapes: list[tuple[int, int]], photons: int, seed: int,
-                 max_bounces: int = 8, emitter=None, reflection_place=None, light_length_mm: float = 0.0,
+def render_walls(scene: MeshScene, source, ior, walls: list[Wall], shapes: list[tuple[int, int]],
+                 photons: int, seed: int, max_bounces: int = 8, emitter=None, reflection_place=None,
                  kernel_moments=None) -> tuple[list[np.ndarray], dict]:
     """Trace about ``photons`` photons from the LED through the lens onto the walls.
 
-    The LED is ``emit``'s (a point, a ball of ``light_radius_mm``, a filament of
-    ``light_length_mm``); ``ior`` is ``propagate``'s; ``emitter(mi, n, seed)`` -> Dr.Jit
-    (origins, unit directions) of about ``n`` photons replaces it with another light, e.g. a panel's
-    collimated beam.  ``kernel_moments`` (a ``sharpness.Moments``) receives where each
+    The LED ``source`` (a ``source.Source``) is traced as ``emit`` says; ``ior`` is
+    ``propagate``'s; ``emitter(mi, n, seed)`` -> Dr.Jit (origins, unit directions) of
+    about ``n`` photons replaces it with another light, e.g. a panel's collimated beam
+    (``source`` is then unused).  ``kernel_moments`` (a ``sharpness.Moments``) receives where each
     photon that was never reflected left the lens and landed.
 
     Returns (per-wall flux images (rows, cols) float64, {"shares": [...], "lost": f,
@@ -361,7 +373,7 @@ def render_walls(scene: MeshScene, light_mm: np.ndarray, light_radius_mm: float,
         batch_seed = seed * 1_000_003 + batch
         n = photons // batches + (batch < photons % batches)
         o, d = (emitter(mi, n, batch_seed) if emitter
-                else emit(mi, light_mm, light_radius_mm, n, batch_seed, light_length_mm))
+                else emit(mi, source, n, batch_seed))
 
         def land(o_out, d_out, reflected):
             pixel = pixel_hits(mi, walls, shapes, o_out, d_out)

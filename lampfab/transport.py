@@ -33,6 +33,7 @@ from . import flow, ot, raymap, surface
 from .limits import Limits, limit_shape
 from .profile import Optimize
 from .room import SECTOR_WIDTH_DEG, Wall
+from .source import Source
 
 # Photon strata around the lens per heightmap node: four photons cross each node column.
 AZIMUTH_STRATA_PER_NODE = 4
@@ -102,10 +103,12 @@ STEEPEN_MIN_GAIN = 0.06
 
 
 def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
-           inner_vertices: np.ndarray, inner_faces: np.ndarray, light_mm: np.ndarray, ior: float,
+           inner_vertices: np.ndarray, inner_faces: np.ndarray, source: Source, ior: float,
            limits: Limits, opt: Optimize, log=print, on_step=None, on_pass=None) -> tuple[np.ndarray, dict]:
     """The transport-based heightmap within ``limits``, on the (grid_u, grid_v) node grid
-    of ``opt`` (the ``[optimize]`` settings).
+    of ``opt`` (the ``[optimize]`` settings), for the LED ``source``'s beam from its
+    centre (the point light: a design shapes where the light goes, the refinement then
+    what the LED's size does to it).
 
     targets: per wall (rows, cols) linear luminance.  From ``opt``: ``transport_photons``
     traced from the light (``seed``), ``transport_rounds`` Levenberg-Marquardt steps per
@@ -126,7 +129,8 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     nu, nv = grid
     n_azimuth = AZIMUTH_STRATA_PER_NODE * nu
     n_elevation = max(opt.transport_photons // n_azimuth, 8 * CELL_STRATA)
-    ph = raymap.stratified_photons(inner_vertices, inner_faces, light_mm, ior, n_azimuth, n_elevation, opt.seed)
+    ph = raymap.stratified_photons(inner_vertices, inner_faces, source, ior, n_azimuth, n_elevation, opt.seed)
+    light_mm = source.position
     spans = sector_spans(walls, targets, light_mm)
     coarse = coarse_grid(grid)
     first_steps = 2 * iterations if coarse != grid else iterations

@@ -18,6 +18,7 @@ import numpy as np
 
 from . import artifacts, metrics, room
 from .errors import LampfabError
+from .source import Source
 
 # optimize_render.npz's name suffix for each wall's second render (other photons).
 SECOND_RENDER = "_again"
@@ -63,14 +64,15 @@ def load(design_path) -> Loaded:
 
 
 def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bounces: int,
-                  light_radius_mm: float | None = None, reflection_place=None,
+                  point: bool = False, reflection_place=None,
                   kernel_moments=None, ior=None, emitter=None) -> tuple[list[np.ndarray], dict]:
     """Trace the design's STL onto its walls (``loaded.walls``).  Returns (per-wall flux
     images, ``room.image_shape(wall, image_px)`` float64, share of the emitted light per
     pixel; info as ``trace.render_walls``'s).
 
-    ``light_radius_mm`` None: the design's own light (its LED, a beam with its spread); a
-    number: a ball of that radius (0: the point light; a beam: parallel).
+    ``point`` False: the design's own light (its LED, a beam with its spread); True: the
+    point light (the LED's beam from its centre, ``source.Source.point``; a beam:
+    parallel).
     ``reflection_place``, ``kernel_moments``, ``ior``, ``emitter`` (another light in
     place of the design's): see ``trace.render_walls``; ``ior`` None: the design's
     material in air."""
@@ -78,16 +80,17 @@ def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bo
 
     design, walls = loaded.design, loaded.walls
     shapes = [room.image_shape(w, image_px) for w in walls]
-    radius = design["light"]["radius"] if light_radius_mm is None else light_radius_mm
-    length = design["light"].get("length", 0.0) if light_radius_mm is None else 0.0
+    source = None
     if emitter is None and design["light"].get("type") == "collimated":
         from .panel.geometry import emitter_from_json
 
-        emitter = emitter_from_json(design["light"], divergence=light_radius_mm is None)
-    images, info = trace.render_walls(loaded.scene, np.asarray(design["light"]["position"], float), radius,
-                                      float(design["material"]["ior"]) if ior is None else ior, walls, shapes,
-                                      photons, seed,
-                                      max_bounces, emitter, reflection_place, length, kernel_moments)
+        emitter = emitter_from_json(design["light"], divergence=not point)
+    elif emitter is None:
+        source = Source.from_json(design["light"])
+        source = source.point() if point else source
+    images, info = trace.render_walls(loaded.scene, source, float(design["material"]["ior"]) if ior is None else ior,
+                                      walls, shapes, photons, seed, max_bounces, emitter, reflection_place,
+                                      kernel_moments)
     return images, info
 
 
@@ -182,7 +185,7 @@ def render_both(loaded: Loaded, image_px: int, photons: int, seed: int, max_boun
     led_light = loaded.design["light"].get("type") != "collimated"
     moments = [sharpness.Moments(sharpness.Cells.for_photons(*_height_range(loaded), photons), len(loaded.walls))
                for _ in range(2)] if led_light else [None, None]
-    point, info = render_design(loaded, image_px, photons, seed, max_bounces, 0.0, kernel_moments=moments[0],
+    point, info = render_design(loaded, image_px, photons, seed, max_bounces, True, kernel_moments=moments[0],
                                 ior=ior)
     led, led_info = render_design(loaded, image_px, photons, seed + 1, max_bounces, kernel_moments=moments[1],
                                   ior=ior)
@@ -226,14 +229,13 @@ def _mitsuba(loaded: Loaded, shapes: list, photons: int, seed: int) -> dict:
 
     from . import mitsuba_reference
 
-    design = loaded.design
-    light, ior = np.asarray(design["light"]["position"], float), float(design["material"]["ior"])
+    led = Source.from_json(loaded.design["light"])
+    ior = float(loaded.design["material"]["ior"])
     t0 = time.time()
     out = {"photons": photons}
-    for name, radius, length in (("point", 0.0, 0.0),
-                                 ("led", design["light"]["radius"], design["light"].get("length", 0.0))):
-        out[name] = mitsuba_reference.render(loaded.vertices, loaded.faces, ior, light, radius, length,
-                                             loaded.walls, shapes, photons, seed)
+    for name, source in (("point", led.point()), ("led", led)):
+        out[name] = mitsuba_reference.render(loaded.vertices, loaded.faces, ior, source, loaded.walls, shapes,
+                                             photons, seed)
     out["seconds"] = time.time() - t0
     return out
 
@@ -311,6 +313,4 @@ def _real_light(light: dict) -> str:
     """The second render's light, in words."""
     if light.get("type") == "collimated":
         return f"beam ±{light['divergence_deg']:g}°"
-    if light.get("length", 0.0) > 0:
-        return f"{light['length']:g} mm filament"
-    return f"LED {light['radius']:g} mm"
+    return Source.from_json(light).describe()

@@ -6,6 +6,7 @@ import pytest
 
 from lampfab import guidance, lens, room, tolerance_study, trace
 from lampfab.profile import load_fabrication, load_led
+from lampfab.source import Source
 
 from tests.helpers import CYL, bumps, inner
 
@@ -30,14 +31,14 @@ def study_setup():
                        np.array([0.0, 0.0, -1350.0]))]
     shapes = [room.image_shape(walls[0], 16)]
     verts, faces = lens.optical_mesh(CYL, bumps(), 2, v, f)
-    target, _ = trace.render_walls(trace.MeshScene(verts, faces), light, 0.0, 1.5, walls, shapes, 40_000, 5, 8)
+    target, _ = trace.render_walls(trace.MeshScene(verts, faces), Source(light), 1.5, walls, shapes, 40_000, 5, 8)
     return v, f, light, walls, target
 
 
 def test_tolerance_study_finds_where_the_image_degrades(study_setup, monkeypatch):
     v, f, light, walls, target = study_setup
     monkeypatch.setattr(tolerance_study, "AMPLITUDES_MM", (0.05, 3.0))
-    res = tolerance_study.study(CYL, bumps(), lambda h: lens.optical_mesh(CYL, h, 2, v, f), light, 1.5, walls,
+    res = tolerance_study.study(CYL, bumps(), lambda h: lens.optical_mesh(CYL, h, 2, v, f), Source(light), 1.5, walls,
                                 target, 40_000, 5, 8, 0.02)
     assert res["amplitudes_mm"] == [0.0, 0.02, 0.05, 3.0]
     r = res["walls"]["front"]

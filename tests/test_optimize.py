@@ -7,6 +7,7 @@ import pytest
 
 from lampfab import optimize, room, splat, surface
 from lampfab.limits import Limits
+from lampfab.source import Source
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +23,7 @@ def tiny_setup(tiny_design, inner_layer):
 def _optimizer(cls, tiny_design, inner_layer, tiny_setup, **changes):
     cyl, walls, targets = tiny_setup
     opt = dataclasses.replace(tiny_design.optimize, **changes)
-    return cls(cyl, *inner_layer, room.light_position(tiny_design), 1.49, walls, targets, opt, Limits(20.0, 45.0))
+    return cls(cyl, *inner_layer, Source(room.light_position(tiny_design)), 1.49, walls, targets, opt, Limits(20.0, 45.0))
 
 
 def test_splat_gradient_matches_finite_differences(mi, tiny_design, inner_layer, tiny_setup):
@@ -96,7 +97,7 @@ def test_splat_steps_reduce_the_loss_and_respect_the_slope_limit(mi, tiny_design
     settings = dataclasses.replace(tiny_design.optimize, splat_photons=100_000, iterations=6, levels=1,
                                    learning_rate=0.1)
     max_tilt_deg = 10.0  # the steps tilt the tiny lens 15° when free
-    opt = splat.SplatOptimizer(cyl, *inner_layer, room.light_position(tiny_design), 1.49, walls, targets, settings,
+    opt = splat.SplatOptimizer(cyl, *inner_layer, Source(room.light_position(tiny_design)), 1.49, walls, targets, settings,
                                Limits(20.0, max_tilt_deg))
     state = optimize.State(np.zeros((tiny_design.optimize.grid_u, tiny_design.optimize.grid_v)), 0, 0)
     first, _ = opt.gradient(state.heights, [0, 1, 2], seed=0)
@@ -158,7 +159,7 @@ def test_splat_steps_keep_hollows_open_for_a_ball_end_tool(mi, tiny_design, inne
     tool_mm = 40.0  # wider than the hollows these steps dig on the tiny lens
 
     def run(tool_radius_mm):
-        method = splat.SplatOptimizer(cyl, *inner_layer, room.light_position(tiny_design), 1.49, walls, targets,
+        method = splat.SplatOptimizer(cyl, *inner_layer, Source(room.light_position(tiny_design)), 1.49, walls, targets,
                                       opt, Limits(20.0, 45.0, tool_radius_mm=tool_radius_mm))
         state = optimize.State(np.zeros((opt.grid_u, opt.grid_v)), 0, 0)
         return method.run(state, lambda s: None, lambda s: None, lambda s, loss, msg: None).heights

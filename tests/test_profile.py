@@ -64,6 +64,7 @@ def test_the_default_led_is_the_one_lampfab_always_had():
     ("shape = 'cube'\n", ["shape", "'cube'", "sphere"]),
     ("shape = 'cylinder'\n", ["length_mm", "filament"]),
     ("length_mm = 5.0\n", ["length_mm", "cylinder"]),
+    ("shape = 'disc'\nlength_mm = 5.0\n", ["length_mm", "cylinder"]),
     ("radius_mm = 30.0\n", ["radius_mm", "out of range", "0.0 to 20.0"]),
     ("colour = 'warm'\n", ["colour", "unknown key"]),
 ])
@@ -75,6 +76,18 @@ def test_bad_led_profiles_name_file_key_and_range(tmp_path, text, words):
     assert str(p) in str(err.value)
     for w in words:
         assert w in str(err.value)
+
+
+def test_a_flat_led_facing_up_cannot_light_the_floor(tmp_path):
+    flat = tmp_path / "flat.toml"
+    flat.write_text("shape = 'disc'\nradius_mm = 1.5\n")
+    led = profile.load_led(str(flat))
+    profile.check_led_for(profile.load_design("default"), led)  # walls only: fine
+    with pytest.raises(LampfabError) as err:
+        profile.check_led_for(profile.load_design("floor"), led)
+    for w in (str(flat), "floor", "below the horizon", "LED=filament26"):
+        assert w in str(err.value)
+    profile.check_led_for(profile.load_design("floor"), profile.load_led("filament26"))
 
 
 def test_the_leds_board_widens_the_bore_never_narrows_it():

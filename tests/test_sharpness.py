@@ -7,6 +7,7 @@ from scipy.ndimage import gaussian_filter
 
 from lampfab import inner, lens, room, sharpness, surface, trace
 from lampfab.room import Wall
+from lampfab.source import Source
 
 WALL = Wall("front", np.array([-900.0, 1000.0, 720.0]), np.array([1800.0, 0, 0]), np.array([0, 0, -1350.0]))
 
@@ -68,7 +69,7 @@ def _blur(plain, radius_mm, scale=1.0, photons=400_000):
     scene = trace.MeshScene(v, f)
     moments = [sharpness.Moments(sharpness.Cells(0.0, 90.0 * scale, 128, 32), 1) for _ in range(2)]
     for k, r in enumerate((0.0, radius_mm)):
-        trace.render_walls(scene, light * scale, r, 1.5, [WALL], [(12, 16)], photons, seed=5 + k,
+        trace.render_walls(scene, Source(light * scale, "sphere", r), 1.5, [WALL], [(12, 16)], photons, seed=5 + k,
                            kernel_moments=moments[k])
     d = sharpness.Kernels.of(*moments).diameters_mm(0, WALL)
     return np.array([d["horizontal"][1], d["vertical"][1]])
@@ -83,7 +84,7 @@ def test_the_blur_grows_with_the_led_and_shrinks_with_the_lens(plain):
 
 
 def test_a_filament_glows_from_its_side_only(mi):
-    o, d = trace.emit(mi, np.array([0.0, 0.0, 45.0]), 0.8, 20_000, 3, length_mm=26.0)
+    o, d = trace.emit(mi, Source((0.0, 0.0, 45.0), "cylinder", 0.8, 26.0), 20_000, 3)
     o, d = trace.to_numpy(o), trace.to_numpy(d)
     assert np.allclose(np.hypot(o[:, 0], o[:, 1]), 0.8, atol=1e-4)
     assert np.abs(o[:, 2] - 45.0).max() <= 13.0 + 1e-4 and np.ptp(o[:, 2]) > 25.0
@@ -99,10 +100,10 @@ def test_mitsubas_light_tracer_sees_the_walls_trace_sees(mi, small_lens):
     walls = [Wall("front", np.array([-900.0, 1000.0, 715.0]), np.array([1800.0, 0, 0]), np.array([0, 0, -1350.0])),
              Wall("left", np.array([-1000.0, -900.0, 715.0]), np.array([0, 1800.0, 0]), np.array([0, 0, -1350.0]))]
     shapes = [(12, 16)] * 2
-    for radius in (0.0, 1.5):
-        mine, _ = trace.render_walls(trace.MeshScene(small_lens.vertices, small_lens.faces), light, radius, 1.5,
+    for source in (Source(light), Source(light, "sphere", 1.5), Source(light, "disc", 1.5)):
+        mine, _ = trace.render_walls(trace.MeshScene(small_lens.vertices, small_lens.faces), source, 1.5,
                                      walls, shapes, 1_000_000, seed=4)
-        theirs = mitsuba_reference.render(small_lens.vertices, small_lens.faces, 1.5, light, radius, 0.0, walls,
+        theirs = mitsuba_reference.render(small_lens.vertices, small_lens.faces, 1.5, source, walls,
                                           shapes, 1_000_000, seed=4)
         for a, b in zip(mine, theirs):
             assert metrics.pearson(a, b) > 0.97

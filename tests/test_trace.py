@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from lampfab import lens, room, trace, transport
+from lampfab.source import Source
 
 
 def _dr(mi, a):
@@ -49,8 +50,8 @@ def plain_room(mi, default_design, cyl, inner_layer):
 
 def test_render_lights_each_wall_by_its_solid_angle_and_is_deterministic(plain_room):
     scene, light, walls, shapes = plain_room
-    a, info = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3)
-    b, _ = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3)
+    a, info = trace.render_walls(scene, Source(light), 1.49, walls, shapes, 200_000, seed=3)
+    b, _ = trace.render_walls(scene, Source(light), 1.49, walls, shapes, 200_000, seed=3)
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
     assert info["lost"] > 0 and info["trapped"] < 0.05
     # The plain lens's bore and outer side are coaxial cylinders: a ray from the light crosses
@@ -81,13 +82,13 @@ def _solid_angle_share(wall, point) -> float:
 
 def test_ghosts_are_the_reflected_part_of_the_light(plain_room):
     scene, light, walls, shapes = plain_room
-    images, info = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3)
+    images, info = trace.render_walls(scene, Source(light), 1.49, walls, shapes, 200_000, seed=3)
     for img, ghost in zip(images, info["ghosts"]):
         assert np.all(ghost <= img)
         # Two interfaces near normal incidence reflect ((n-1)/(n+1))^2 = 3.9 % each.
         assert 0.03 < ghost.sum() / img.sum() < 0.15
     # Glass that matches the air reflects only at grazing incidence: a photon or two of 200,000.
-    matched_images, matched = trace.render_walls(scene, light, 0.0, 1.0 + 1e-6, walls, shapes, 200_000, seed=3)
+    matched_images, matched = trace.render_walls(scene, Source(light), 1.0 + 1e-6, walls, shapes, 200_000, seed=3)
     assert all(ghost.sum() < 1e-3 * img.sum() for img, ghost in zip(matched_images, matched["ghosts"]))
 
 
@@ -100,8 +101,8 @@ def test_ghosts_split_by_where_they_were_first_reflected(plain_room):
     def inner_or_outer(p, n):  # 1: a facet facing the axis (the bore), 2: the rest
         return dr.select(p.x * n.x + p.y * n.y < 0, mi.UInt32(1), mi.UInt32(2))
 
-    images, info = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3)
-    same, split = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3,
+    images, info = trace.render_walls(scene, Source(light), 1.49, walls, shapes, 200_000, seed=3)
+    same, split = trace.render_walls(scene, Source(light), 1.49, walls, shapes, 200_000, seed=3,
                                      reflection_place=inner_or_outer)
     assert all(np.array_equal(a, b) for a, b in zip(images, same))
     assert sorted(split["ghosts_by_place"]) == [1, 2]
@@ -126,11 +127,11 @@ def test_a_cavity_filled_to_the_glasss_index_stops_reflecting(plain_room):
     def code(p, n):
         return dr.select(facing_the_axis(p, n), mi.UInt32(1), mi.UInt32(2))
 
-    images, info = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, 200_000, seed=3, reflection_place=code)
-    same, _ = trace.render_walls(scene, light, 0.0, lambda p, n: mi.Float(1.49) + 0.0 * p.x, walls, shapes,
+    images, info = trace.render_walls(scene, Source(light), 1.49, walls, shapes, 200_000, seed=3, reflection_place=code)
+    same, _ = trace.render_walls(scene, Source(light), lambda p, n: mi.Float(1.49) + 0.0 * p.x, walls, shapes,
                                  200_000, seed=3)
     assert all(np.array_equal(a, b) for a, b in zip(images, same))  # a per-facet index of 1.49 is the float's
-    potted, split = trace.render_walls(scene, light, 0.0, filled, walls, shapes, 200_000, seed=3,
+    potted, split = trace.render_walls(scene, Source(light), filled, walls, shapes, 200_000, seed=3,
                                        reflection_place=code)
     for k in range(len(walls)):
         # The bore reflected a fair part of the ghosts; filled, a grazing photon at most.
@@ -159,8 +160,8 @@ def test_stratified_photons_vary_less_than_poisson_per_pixel(plain_room):
     counting noise: verify's figures are not limited by its own photon noise."""
     scene, light, walls, shapes = plain_room
     photons = 200_000
-    a, info = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, photons, seed=3)
-    b, _ = trace.render_walls(scene, light, 0.0, 1.49, walls, shapes, photons, seed=4)
+    a, info = trace.render_walls(scene, Source(light), 1.49, walls, shapes, photons, seed=3)
+    b, _ = trace.render_walls(scene, Source(light), 1.49, walls, shapes, photons, seed=4)
     assert abs(info["photons"] - photons) < 0.01 * photons
     counts_a, counts_b = (np.concatenate([img.ravel() for img in x]) * info["photons"] for x in (a, b))
     # Independent photons: each pixel's count is Poisson, var(a - b) = a + b.
@@ -200,7 +201,7 @@ def test_direct_noise_sample_is_as_noisy_as_the_render(plain_room, monkeypatch):
     monkeypatch.setattr(trace, "BATCH", 50_000)  # four batches: two halves to compare
 
     def render(seed):
-        images, info = trace.render_walls(scene, light, 1.5, 1.49, walls, shapes, 200_000, seed=seed)
+        images, info = trace.render_walls(scene, Source(light, "sphere", 1.5), 1.49, walls, shapes, 200_000, seed=seed)
         return np.concatenate([(i - g).ravel() for i, g in zip(images, info["ghosts"])]), info
 
     a, info = render(3)
@@ -213,6 +214,6 @@ def test_direct_noise_sample_is_as_noisy_as_the_render(plain_room, monkeypatch):
     assert abs(noise.sum()) < 0.05 * np.abs(noise).sum()
     # Photons that fit one batch are traced as two, so that there are halves to compare.
     monkeypatch.setattr(trace, "BATCH", 1_000_000)
-    _, whole = trace.render_walls(scene, light, 1.5, 1.49, walls, shapes, 200_000, seed=3)
+    _, whole = trace.render_walls(scene, Source(light, "sphere", 1.5), 1.49, walls, shapes, 200_000, seed=3)
     spread = np.std(np.concatenate([n.ravel() for n in whole["direct_noise"]])[lit])
     assert spread == pytest.approx(np.std((a - b)[lit]) / np.sqrt(2), rel=0.15)

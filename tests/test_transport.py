@@ -8,6 +8,7 @@ import pytest
 from lampfab import concavity, curvature, limits, raymap, room, surface, trace, transport
 from lampfab.limits import Limits
 from lampfab.profile import Optimize
+from lampfab.source import Source
 
 PRINTED = Limits(20.0, 45.0)  # mm of offset, degrees of slope; no tool, no overhang rule
 
@@ -18,7 +19,7 @@ def _nominal(walls):
 
 @pytest.fixture(scope="module")
 def photons(inner_layer, default_design):
-    return raymap.stratified_photons(*inner_layer, room.light_position(default_design), 1.5, 128, 64, seed=2)
+    return raymap.stratified_photons(*inner_layer, Source(room.light_position(default_design)), 1.5, 128, 64, seed=2)
 
 
 def test_photons_cover_the_sphere_and_enter_the_glass(photons):
@@ -237,7 +238,7 @@ def test_the_passes_keep_the_lens_whose_light_lands_closest(tiny_design, inner_l
     monkeypatch.setattr(raymap.RayMap, "fit", fit)
     monkeypatch.setattr(transport, "landing_goals", landed)
     heights, figures = transport.design(surface.Cylinder(45.0, 90.0, creased=True), walls, targets, *inner_layer,
-                                        room.light_position(tiny_design), 1.5, PRINTED, opt, log=lambda m: None)
+                                        Source(room.light_position(tiny_design)), 1.5, PRINTED, opt, log=lambda m: None)
     assert landed_errors == [0.50, 0.40, 0.45, 0.30, 0.31]   # the held fifth fit ends them, budget left
     assert figures["kept_pass"] == 3
     np.testing.assert_allclose(heights, 4.0)                   # the fourth fit's lens: each fit adds 1 mm
@@ -264,7 +265,7 @@ def test_the_design_steepens_its_slopes_only_where_its_light_cannot_land(tiny_de
     monkeypatch.setattr(raymap.RayMap, "fit", fit)
     limits_given = Limits(20.0, 30.0, steepest_slope_deg=steepest)
     _, figures = transport.design(surface.Cylinder(45.0, 90.0, creased=True), walls, targets, *inner_layer,
-                                  room.light_position(tiny_design), 1.5, limits_given, opt, log=lambda m: None)
+                                  Source(room.light_position(tiny_design)), 1.5, limits_given, opt, log=lambda m: None)
     tried = preferred_mm > 2 * 112.5 and steepest is not None
     assert limits_seen == [30.0] + [45.0] * tried + [chosen] * 3
     assert figures["slope_limit_deg"] == chosen
@@ -278,7 +279,7 @@ def test_transport_alone_projects_the_target(tiny_design, inner_layer):
     walls, targets, opt = _disc_lamp(tiny_design)
     light = room.light_position(tiny_design)
     cyl = surface.Cylinder(45.0, 90.0, creased=True)
-    heights, figures = transport.design(cyl, walls, targets, *inner_layer, light, 1.5, PRINTED, opt,
+    heights, figures = transport.design(cyl, walls, targets, *inner_layer, Source(light), 1.5, PRINTED, opt,
                                         log=lambda m: None)
     # The correction passes go on until they spend their budget of steps or one leaves the
     # lens held; the lens kept is the one whose light lands closest to the target's density,
@@ -298,7 +299,7 @@ def test_transport_alone_projects_the_target(tiny_design, inner_layer):
     from lampfab import lens, metrics
 
     v, f = lens.optical_mesh(cyl, heights, 2, *inner_layer)
-    images, _ = trace.render_walls(trace.MeshScene(v, f), light, 0.0, 1.5, walls, [t.shape for t in targets],
+    images, _ = trace.render_walls(trace.MeshScene(v, f), Source(light), 1.5, walls, [t.shape for t in targets],
                                    400_000, seed=1)
     for img, target in zip(images, targets):
         assert metrics.pearson(img, target) > 0.8
@@ -376,7 +377,7 @@ def test_a_ball_end_tool_radius_keeps_hollows_open(inner_layer, default_design, 
     """A tight dimple the goals ask for: with a 3 mm ball-end tool the fit opens it up."""
     walls = room.walls(default_design)
     light = room.light_position(default_design)
-    dense = raymap.stratified_photons(*inner_layer, light, 1.5, 512, 256, seed=3)
+    dense = raymap.stratified_photons(*inner_layer, Source(light), 1.5, 512, 256, seed=3)
     wall_of = transport.sector_of(dense.emitted, walls, _nominal(walls), light, 1.5, 45.0)
     nu, nv = 128, 33
     dimple = np.zeros((nu, nv))

@@ -69,11 +69,10 @@ def measure(build) -> dict:
     cells = sharpness.Cells.for_photons(0.0, build.design.lens.height_mm, BUDGET_PHOTONS)
     shapes = [room.image_shape(w, opt.sensor_px) for w in build.walls]
     moments = []
-    for k, radius in enumerate((0.0, build.led.radius_mm)):
+    for k, source in enumerate((build.source.point(), build.source)):
         m = sharpness.Moments(cells, len(build.walls))
-        trace.render_walls(scene, build.light, radius, build.fab.ior, build.walls, shapes, BUDGET_PHOTONS,
-                           opt.seed + 101 + k, build.design.verify.max_bounces,
-                           light_length_mm=build.led.length_mm if radius else 0.0, kernel_moments=m)
+        trace.render_walls(scene, source, build.fab.ior, build.walls, shapes, BUDGET_PHOTONS,
+                           opt.seed + 101 + k, build.design.verify.max_bounces, kernel_moments=m)
         moments.append(m)
     kernels = sharpness.Kernels.of(*moments)
     return summarize(build, kernels)
@@ -119,16 +118,16 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
 
 
 def _sharper_led(build, soft: list) -> dict | None:
-    """The largest bundled ball-shaped LED smaller than the build's with which every wall
+    """The largest bundled LED of the build's shape, smaller than its own, with which every wall
     in ``soft`` ((wall, target, kernel field) of the walls whose detail the LED blurs
     away) would keep its detail (``DETAIL_SSIM``), or else the smallest one; None when no
-    wall is soft or the build's LED is not a ball (a filament's blur has another shape).
+    wall is soft or the build's LED is a filament (its length makes another blur).
     Returns {"name", "radius_mm", "detail_ssim": {wall: SSIM}, "enough": bool}.
 
     """
-    if not soft or build.led.shape != "sphere":
+    if not soft or build.led.shape == "cylinder":
         return None
-    smaller = [o for o in _balls(build.led.radius_mm) if o.radius_mm < build.led.radius_mm]
+    smaller = [o for o in _alike(build.led, build.led.radius_mm) if o.radius_mm < build.led.radius_mm]
     found = None
     for led in smaller:
         scores = {wall.name: metrics.ssim(sharpness.blur(target, _scaled(build, led, field), wall), target)
@@ -156,7 +155,7 @@ def _halve(build, walls: dict) -> str:
     if led.shape == "cylinder":  # a filament's length makes the blur up the wall
         emitter = f"a filament half as long ({led.length_mm / 2:g} mm: {v / 2:.0f} mm up the wall)"
     else:
-        smaller = next(iter(_balls(led.radius_mm / 2)), None)
+        smaller = next(iter(_alike(led, led.radius_mm / 2)), None)
         if smaller:
             s = smaller.radius_mm / led.radius_mm
             emitter = (f"an LED at most half as wide (LED={smaller.name}, {smaller.radius_mm:g} mm radius: "
@@ -187,7 +186,7 @@ def _unreadable(build, walls: dict) -> list[tuple[str, float, float]]:
 
 
 def _text_led(build, walls: dict, unreadable: list, text_fields: dict) -> dict | None:
-    """The bundled ball-shaped LED to name for the ``unreadable`` walls' text: of those
+    """The bundled LED of the build's shape to name for the ``unreadable`` walls' text: of those
     whose blur stays under ``TEXT_BLUR_EM`` there, the largest with which a perfect lens
     would show every word the sharp target shows (Tesseract on the target blurred by its
     kernels, on the walls of ``text_fields`` OCR ran on), or else the one that shows the
@@ -200,7 +199,7 @@ def _text_led(build, walls: dict, unreadable: list, text_fields: dict) -> dict |
     found = {"max_radius_mm": largest, "name": None, "radius_mm": None, "perfect_words_read": {}}
     names = {name for name, _, _ in unreadable}
     best = None
-    for led in _balls(largest):
+    for led in _alike(build.led, largest):
         read = {name: ocr.words_read(sharpness.blur(target, _scaled(build, led, field), wall), text)
                 for name, (wall, target, field, text) in text_fields.items() if name in names}
         if best is None or sum(read.values()) > sum(best[1].values()):
@@ -262,7 +261,8 @@ def _bundled_leds() -> list[profile.Led]:
     return [profile.load_led(str(p)) for p in sorted((profile.PROFILE_DIR / "led").glob("*.toml"))]
 
 
-def _balls(max_radius_mm: float) -> list[profile.Led]:
-    """The bundled ball-shaped LEDs of radius up to ``max_radius_mm``, largest first."""
-    return sorted((o for o in _bundled_leds() if o.shape == "sphere" and 0 < o.radius_mm <= max_radius_mm),
+def _alike(led: profile.Led, max_radius_mm: float) -> list[profile.Led]:
+    """The bundled LEDs of ``led``'s shape (a ball or a flat LED, whose blur scales with
+    its radius) of radius up to ``max_radius_mm``, largest first."""
+    return sorted((o for o in _bundled_leds() if o.shape == led.shape and 0 < o.radius_mm <= max_radius_mm),
                   key=lambda o: -o.radius_mm)

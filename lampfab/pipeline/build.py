@@ -60,8 +60,9 @@ class Build:
     @staticmethod
     def open(out, design_name: str, fab_name: str, led_name: str = profile.DEFAULT_LED) -> "Build":
         led = profile.load_led(led_name)
-        return Build(Path(out), profile.load_design(design_name),
-                     profile.with_bore_for(profile.load_fabrication(fab_name), led), led)
+        design = profile.load_design(design_name)
+        profile.check_led_for(design, led)
+        return Build(Path(out), design, profile.with_bore_for(profile.load_fabrication(fab_name), led), led)
 
     # -- the lens and its room, as the stages use them ------------------------------------
     @functools.cached_property
@@ -88,6 +89,13 @@ class Build:
     @property
     def light(self) -> np.ndarray:
         return room.light_position(self.design)
+
+    @property
+    def source(self):
+        """The LED at its place (``source.Source``)."""
+        from ..source import Source
+
+        return Source.of_led(self.light, self.led)
 
     @property
     def walls(self) -> list[room.Wall]:
@@ -122,7 +130,7 @@ class Build:
         ``[optimize]`` settings ``opt``; ``progress``: log, on_step, on_pass."""
         from .. import transport
 
-        return transport.design(self.cylinder, self.walls, self.targets(opt.sensor_px), *inner, self.light,
+        return transport.design(self.cylinder, self.walls, self.targets(opt.sensor_px), *inner, self.source,
                                 self.fab.ior, self.limits, opt, **progress)
 
     def optimizer(self, opt, inner, targets, limits=None):
@@ -133,8 +141,12 @@ class Build:
         from ..splat import SplatOptimizer
 
         method = {"ptracer": optimize.PtracerOptimizer, "splat": SplatOptimizer}[opt.method]
-        return method(self.cylinder, *inner, self.light, self.fab.ior, self.walls, targets, opt, limits or self.limits,
-                      self.led if opt.design_light == "led" else None)
+        if opt.method == "ptracer" and self.source.facing_up:
+            raise LampfabError(f"{self.design.path}: [optimize] method \"ptracer\" lights the lens with Mitsuba's "
+                               f"point light, which shines every way; LED={self.led.name} shines up only: "
+                               f"use method \"splat\"")
+        source = self.source if opt.design_light == "led" else self.source.point()
+        return method(self.cylinder, *inner, source, self.fab.ior, self.walls, targets, opt, limits or self.limits)
 
     # -- where each artifact lives ----------------------------------------------------------
     def report_file(self, stage: str) -> Path:

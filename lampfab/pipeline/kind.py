@@ -178,7 +178,7 @@ class Lamp(LensKind):
             made = make(heights)
             return made.vertices, made.faces
 
-        study = tolerance_study.study(build.cylinder, build.heights(), lens_mesh, build.light,
+        study = tolerance_study.study(build.cylinder, build.heights(), lens_mesh, build.source.point(),
                                       fab.ior, build.walls, build.targets(v.image_px), v.study_photons,
                                       d.optimize.seed + 11, v.max_bounces, fab.surface_error_mm)
         progress.log(f"verify: polishing allowance {'>= ' if study['allowance_at_least'] else ''}"

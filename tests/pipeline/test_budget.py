@@ -59,7 +59,7 @@ def test_plan_names_the_largest_led_with_which_the_text_reads(text_build, monkey
     target = np.zeros((rows, cols))
     target[rows // 2, cols // 2] = 1.0
     field = np.broadcast_to([60.0**2 / 16, 84.0**2 / 16, 0.0], (rows, cols, 3))  # the default's 60 x 84 mm
-    peak = {o.name: sharpness.blur(target, budget._scaled(build, o, field), wall).max() for o in budget._balls(0.8)}
+    peak = {o.name: sharpness.blur(target, budget._scaled(build, o, field), wall).max() for o in budget._alike(build.led, 0.8)}
     # The peak with which the stand-in first reads all four words; past every LED: never.
     cut = peak[reads_whole_from] if reads_whole_from else 2 * max(peak.values())
     # Short of that, the dimmest peak reads 2 words, the next 3.
@@ -139,7 +139,7 @@ def test_plan_reads_a_perfect_lenss_text_through_the_leds_blur(text_build, phras
         # The LED plan names is read through too: its kernels are this LED's scaled by the
         # radii's ratio, as the same blur given outright reads.
         named = figures["text_led"]
-        assert named["name"] in {o.name for o in budget._balls(named["max_radius_mm"])}
+        assert named["name"] in {o.name for o in budget._alike(build.led, named["max_radius_mm"])}
         assert set(named["perfect_words_read"]) == {"front", "left", "right"}
         ratio = named["radius_mm"] / build.led.radius_mm
         direct = budget.summarize(build, _uniform_kernels(build, blur_mm[0] * ratio, blur_mm[1] * ratio))

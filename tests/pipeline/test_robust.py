@@ -20,6 +20,7 @@ from PIL import Image
 from lampfab import optimize, resources, room, surface
 from lampfab.errors import LampfabError
 from lampfab.limits import Limits
+from lampfab.source import Source
 
 from tests.helpers import ROOT, cli, make
 
@@ -413,7 +414,7 @@ def test_splat_gradient_is_bit_reproducible(mi, tiny_design, inner_layer):
     h = np.random.default_rng(3).normal(scale=0.5, size=(tiny_design.optimize.grid_u, tiny_design.optimize.grid_v))
     results = []
     for _ in range(2):
-        opt = splat.SplatOptimizer(surface.Cylinder(45.0, 90.0), *inner_layer, room.light_position(tiny_design), 1.49,
+        opt = splat.SplatOptimizer(surface.Cylinder(45.0, 90.0), *inner_layer, Source(room.light_position(tiny_design)), 1.49,
                                    walls, targets, dataclasses.replace(tiny_design.optimize, splat_photons=100_000),
                                    Limits(20.0, 45.0))
         results.append(opt.gradient(h, [0, 1, 2], seed=11))

@@ -26,7 +26,7 @@ def plan(build: Build) -> dict:
     shapes = [room.image_shape(w, 3 * px) for w in big]
     # A quarter of verify's photons: the shares and extents plan reports come out the same
     # to a tenth of a per cent.
-    images, info = trace.render_walls(scene, build.light, 0.0, build.fab.ior, big, shapes,
+    images, info = trace.render_walls(scene, build.source.point(), build.fab.ior, big, shapes,
                                       d.verify.photons // 4, d.optimize.seed, d.verify.max_bounces, emitter)
     figures = {"lost_share": info["lost"], "walls": {}}
     for wall, img in zip(walls, images):

@@ -1,0 +1,68 @@
+"""The LED as the optics see it: its beam, where its photons start, how designs name it."""
+
+import numpy as np
+import pytest
+
+from lampfab import raymap, room, trace
+from lampfab.source import Source
+
+
+def _uniform_directions(n, seed=0):
+    d = np.random.default_rng(seed).standard_normal((n, 3))
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def test_a_flat_leds_intensity_is_its_cosine_from_up_and_nothing_below():
+    d = _uniform_directions(400_000)
+    flat = Source((0, 0, 45), "disc", 1.5).intensity(d)
+    assert flat.mean() == pytest.approx(1.0, abs=0.01)  # the same light in all as a ball
+    assert np.all(flat[d[:, 2] < 0] == 0) and np.allclose(flat[d[:, 2] > 0], 4 * d[d[:, 2] > 0, 2])
+    assert np.all(Source((0, 0, 45), "sphere", 1.5).intensity(d) == 1)
+
+
+def test_a_flat_led_shines_up_from_its_face(mi):
+    o, d = trace.emit(mi, Source((0.0, 0.0, 45.0), "disc", 1.5), 40_000, 3)
+    o, d = trace.to_numpy(o), trace.to_numpy(d)
+    assert np.allclose(o[:, 2], 45.0)
+    r = np.hypot(o[:, 0], o[:, 1])
+    assert r.max() <= 1.5 + 1e-5 and np.mean(r < 1.5 / np.sqrt(2)) == pytest.approx(0.5, abs=0.02)  # even over the disc
+    assert (d[:, 2] > 0).all()
+    assert np.mean(d[:, 2]) == pytest.approx(2 / 3, abs=0.01)  # Lambertian: mean cosine 2/3
+    point_o, point_d = trace.emit(mi, Source((0.0, 0.0, 45.0), "disc", 1.5).point(), 40_000, 3)
+    assert np.allclose(trace.to_numpy(point_o), [0.0, 0.0, 45.0])
+    assert np.mean(trace.to_numpy(point_d)[:, 2]) == pytest.approx(2 / 3, abs=0.01)  # the point keeps the beam
+
+
+def test_the_transport_weighs_each_photon_by_the_beam(default_design, inner_layer):
+    light = room.light_position(default_design)
+    ball = raymap.stratified_photons(*inner_layer, Source(light), 1.5, 64, 32, seed=2)
+    flat = raymap.stratified_photons(*inner_layer, Source(light, "disc"), 1.5, 64, 32, seed=2)
+    assert np.array_equal(ball.emitted, flat.emitted)
+    assert np.allclose(flat.weight, ball.weight * 4 * np.maximum(ball.emitted[:, 2], 0))
+    assert flat.weight[ball.emitted[:, 2] < 0].sum() == 0
+    assert flat.weight.sum() == pytest.approx(ball.weight.sum(), rel=0.05)
+
+
+def test_designs_name_their_light():
+    disc = Source.from_json({"position": [0, 0, 15], "shape": "disc", "radius": 1.5, "length": 0.0})
+    assert (disc.shape, disc.facing_up, disc.describe()) == ("disc", True, "flat LED 1.5 mm facing up")
+    # Written before designs named the shape: a length is a filament, else a ball.
+    assert Source.from_json({"position": [0, 0, 45], "radius": 0.8, "length": 26.0}).shape == "cylinder"
+    assert Source.from_json({"position": [0, 0, 45], "radius": 1.5}).describe() == "LED 1.5 mm"
+    with pytest.raises(ValueError, match="shape 'cube'"):
+        Source((0, 0, 0), "cube")
+
+
+def test_the_source_method_refuses_a_flat_led(tmp_path):
+    """``ptracer`` lights the lens with Mitsuba's point light, which shines every way."""
+    import dataclasses
+
+    from lampfab import pipeline
+    from lampfab.errors import LampfabError
+
+    flat = tmp_path / "flat.toml"
+    flat.write_text("shape = 'disc'\nradius_mm = 1.5\n")
+    build = pipeline.Build.open(tmp_path / "b", "default", "sla_resin", str(flat))
+    opt = dataclasses.replace(build.design.optimize, method="ptracer", design_light="point")
+    with pytest.raises(LampfabError, match='method "ptracer" .* LED=flat shines up only'):
+        build.optimizer(opt, None, [])
