@@ -60,8 +60,8 @@ CASES = (
     Case("words", "four other words: \"Welcome home dear friend\"", ("TEXT=Welcome home dear friend",)),
     Case("panorama", "360° panorama", ("PANORAMA=examples/panorama.png",)),
     Case("apple_die1mm", "the apple with a 1 mm die (LED=die1mm)", ("TARGET=examples/apple.png", "LED=die1mm")),
-    Case("apple_floor", "the apple on three walls and the floor (PROFILE=floor)",
-         ("TARGET=examples/apple.png", "PROFILE=floor"), tables=("full", "times")),
+    Case("apple_floor", "the apple on three walls and the floor with an LED in a 10 mm opal ball (PROFILE=floor "
+         "LED=opal10)", ("TARGET=examples/apple.png", "PROFILE=floor", "LED=opal10"), tables=("full", "times")),
     Case("apple_hires", "the apple at 128 px with a 1 mm die (PROFILE=hires LED=die1mm)",
          ("TARGET=examples/apple.png", "PROFILE=hires", "LED=die1mm"), tables=("full", "times")),
     Case("panel", "the source's prior-work panel (PROFILE=panel)", ("PROFILE=panel",), tables=("full", "times")),

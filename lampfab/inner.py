@@ -103,6 +103,19 @@ def load_inner(path: str | Path | None, scale: float, light_mm: np.ndarray,
     return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
 
 
+def check_led_inside(vertices: np.ndarray, faces: np.ndarray, source, where: str) -> None:
+    """Refuse an LED whose glowing part pokes out of the cavity: a filament's ends, a
+    ball's poles and sides, a disc's rim (``source``: a ``source.Source``; ``vertices``
+    (n, 3) mm and ``faces`` as ``load_inner`` returns them)."""
+    r = source.radius_mm
+    up = {"cylinder": source.length_mm / 2, "sphere": r}.get(source.shape, 0.0)
+    offsets = np.array([[0, 0, up], [0, 0, -up], [r, 0, 0], [-r, 0, 0], [0, r, 0], [0, -r, 0]])
+    for point in source.position + offsets:
+        if abs(winding_number(vertices, faces, point) - 1.0) > 0.5:
+            raise LampfabError(f"{where}: the LED ({source.describe()}) reaches {np.round(point, 2).tolist()} mm, "
+                               f"outside the cavity; move [lens] light_height_mm or choose a smaller LED")
+
+
 def winding_number(vertices: np.ndarray, faces: np.ndarray, point: np.ndarray) -> float:
     """Generalized winding number of a closed mesh around ``point`` (1 inside, 0 outside).
 

@@ -70,6 +70,15 @@ def default_design():
 
 
 @pytest.fixture(scope="session")
+def mid_design(default_design):
+    """The default profile with the light at mid-height, where a ball LED shining every way
+    sits (the default's flat LED sits low): the geometry the optics tests were set on."""
+    import dataclasses
+
+    return dataclasses.replace(default_design, lens=dataclasses.replace(default_design.lens, light_height_mm=45.0))
+
+
+@pytest.fixture(scope="session")
 def cyl(default_design):
     lens = default_design.lens
     return surface.Cylinder(lens.outer_radius_mm, lens.height_mm)

@@ -40,11 +40,11 @@ def test_snell_normals_send_light_where_asked(mi, rng):
 
 
 @pytest.fixture
-def plain_room(mi, default_design, cyl, inner_layer):
+def plain_room(mi, mid_design, cyl, inner_layer):
     """The plain lens (zero heights) in the default room: (scene, light, walls, shapes)."""
-    walls = room.walls(default_design)
+    walls = room.walls(mid_design)
     v, f = lens.optical_mesh(cyl, np.zeros((32, 9)), 2, *inner_layer)
-    return (trace.MeshScene(v, f), room.light_position(default_design), walls,
+    return (trace.MeshScene(v, f), room.light_position(mid_design), walls,
             [room.image_shape(w, 16) for w in walls])
 
 
@@ -169,13 +169,13 @@ def test_stratified_photons_vary_less_than_poisson_per_pixel(plain_room):
     assert ratio < 0.3
 
 
-def test_light_reflected_by_the_cavity_enters_the_glass_across_it(mi, inner_layer, default_design):
+def test_light_reflected_by_the_cavity_enters_the_glass_across_it(mi, inner_layer, mid_design):
     """into_glass: the light meeting the cavity's wall head-on enters the glass there
     (96 %), and every 4th photon also carries the 4 % reflected across the cavity into
     the glass on the far side, still travelling straight."""
     v, f = inner_layer
     cavity = trace.MeshScene(v, f[:, ::-1])  # normals into the cavity
-    light = room.light_position(default_design)
+    light = room.light_position(mid_design)
     n = 2_000
     o = _dr(mi, np.tile(light, (n, 1)))
     d = _dr(mi, np.tile([1.0, 0.0, 0.0], (n, 1)))

@@ -18,8 +18,8 @@ def _nominal(walls):
 
 
 @pytest.fixture(scope="module")
-def photons(inner_layer, default_design):
-    return raymap.stratified_photons(*inner_layer, Source(room.light_position(default_design)), 1.5, 128, 64, seed=2)
+def photons(inner_layer, mid_design):
+    return raymap.stratified_photons(*inner_layer, Source(room.light_position(mid_design)), 1.5, 128, 64, seed=2)
 
 
 def test_photons_cover_the_sphere_and_enter_the_glass(photons):
@@ -39,10 +39,10 @@ def test_photons_cover_the_sphere_and_enter_the_glass(photons):
     assert np.abs(np.angle(np.exp(1j * (az_in - az_out)))[side]).max() < np.pi / 1024
 
 
-def test_landing_agrees_with_the_photon_tracer(mi, photons, default_design, cyl):
+def test_landing_agrees_with_the_photon_tracer(mi, photons, mid_design, cyl):
     """Where raymap says a photon lands is the pixel Mitsuba's tracer puts it in."""
-    walls = room.walls(default_design)
-    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
+    walls = room.walls(mid_design)
+    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(mid_design), 1.5, 45.0)
     fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, PRINTED, 1e-2)
     rng = np.random.default_rng(0)
     heights = 2.0 * rng.standard_normal((32, 9))
@@ -85,11 +85,11 @@ def _bumpy_goals(photons, design, cyl, tilt):
 
 
 @pytest.mark.parametrize("creased", [False, True])
-def test_fit_finds_a_surface_that_lands_photons_at_its_goals(photons, default_design, cyl, creased):
+def test_fit_finds_a_surface_that_lands_photons_at_its_goals(photons, mid_design, cyl, creased):
     """Goals made by a known bumpy surface: the fit from a plain cylinder lands the light there."""
     cyl = surface.Cylinder(cyl.radius_mm, cyl.height_mm, creased)
     z = cyl.node_z(9)[None, :]
-    fitter, truth, goals = _bumpy_goals(photons, default_design, cyl, 0.02 * (z - 45.0))
+    fitter, truth, goals = _bumpy_goals(photons, mid_design, cyl, 0.02 * (z - 45.0))
     start = fitter.trace(np.zeros_like(truth))
     before = np.sqrt(np.nanmean(np.sum((start.xy - goals[start.index]) ** 2, axis=1)))
     fitted, figures = fitter.fit(np.zeros_like(truth), goals, 6)
@@ -101,10 +101,10 @@ def test_fit_finds_a_surface_that_lands_photons_at_its_goals(photons, default_de
     assert np.abs(error - error.mean()).max() < 0.5
 
 
-def test_a_fit_with_a_minimum_gain_ends_after_the_first_step_that_gains_less(photons, default_design, cyl):
+def test_a_fit_with_a_minimum_gain_ends_after_the_first_step_that_gains_less(photons, mid_design, cyl):
     """The same fit, unbounded and with ``min_gain``: the bounded one takes the same steps
     and ends right after the first whose landing error (mean square) fell by less."""
-    fitter, truth, goals = _bumpy_goals(photons, default_design, cyl, 0.0)
+    fitter, truth, goals = _bumpy_goals(photons, mid_design, cyl, 0.0)
     start = np.zeros_like(truth)
     steps = []
     _, initial = fitter.fit(start, goals, 0)
@@ -119,11 +119,11 @@ def test_a_fit_with_a_minimum_gain_ends_after_the_first_step_that_gains_less(pho
     assert bounded["rms_landing_error_mm"] == steps[expected - 1]["rms_landing_error_mm"]
 
 
-def test_a_photon_without_a_landing_derivative_steers_nothing(photons, default_design, cyl):
+def test_a_photon_without_a_landing_derivative_steers_nothing(photons, mid_design, cyl):
     """Where a difference of the landing is undefined (NaN), the fit's linear system leaves
     that photon out instead of turning NaN."""
-    walls = room.walls(default_design)
-    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(default_design), 1.5, 45.0)
+    walls = room.walls(mid_design)
+    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(mid_design), 1.5, 45.0)
     fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, PRINTED, 1e-4)
     heights = np.zeros((32, 9))
     grid = fitter.grid(heights.shape)
@@ -144,12 +144,12 @@ def test_a_photon_without_a_landing_derivative_steers_nothing(photons, default_d
     assert np.abs(holed["gradient"] - exact["gradient"]).max() < 0.05 * np.abs(exact["gradient"]).max()
 
 
-def test_sectors_follow_the_walls_and_skip_light_no_slope_can_reach(default_design):
+def test_sectors_follow_the_walls_and_skip_light_no_slope_can_reach(mid_design):
     import dataclasses
 
-    light = room.light_position(default_design)
-    walls = room.walls(default_design)
-    with_floor = dataclasses.replace(default_design, room=dataclasses.replace(default_design.room,
+    light = room.light_position(mid_design)
+    walls = room.walls(mid_design)
+    with_floor = dataclasses.replace(mid_design, room=dataclasses.replace(mid_design.room,
                                                                              walls=("front", "floor")))
     az = np.radians([90.0, 180.0, 0.0, 270.0, 270.0])
     el = np.radians([0.0, 10.0, -10.0, -40.0, 40.0])
@@ -169,18 +169,18 @@ def _left_heavy(shape):
     return target
 
 
-def test_centred_images_keep_the_nominal_sectors(default_design):
-    walls = room.walls(default_design)
+def test_centred_images_keep_the_nominal_sectors(mid_design):
+    walls = room.walls(mid_design)
     targets = [np.ones(room.image_shape(w, 32)) for w in walls]
-    spans = transport.sector_spans(walls, targets, room.light_position(default_design))
+    spans = transport.sector_spans(walls, targets, room.light_position(mid_design))
     for wall in walls:
         assert np.allclose(spans[wall.name], wall.sector_deg(), atol=1e-6)
 
 
-def test_off_centre_images_turn_every_sector_the_same_way(default_design):
-    walls = room.walls(default_design)
+def test_off_centre_images_turn_every_sector_the_same_way(mid_design):
+    walls = room.walls(mid_design)
     targets = [_left_heavy(room.image_shape(w, 32)) for w in walls]
-    spans = transport.sector_spans(walls, targets, room.light_position(default_design))
+    spans = transport.sector_spans(walls, targets, room.light_position(mid_design))
     # Seen from the lamp, the left of every wall's image lies at larger u: each sector
     # turns that way, by the same angle.
     front_shift = np.mean(spans["front"]) - 90.0
@@ -194,9 +194,9 @@ def test_off_centre_images_turn_every_sector_the_same_way(default_design):
     assert spans["left"][1] >= 225.0 - 1e-9
 
 
-def test_frame_angles_increase_along_the_image_axes(default_design):
-    light = room.light_position(default_design)
-    for wall in room.walls(default_design):
+def test_frame_angles_increase_along_the_image_axes(mid_design):
+    light = room.light_position(mid_design)
+    for wall in room.walls(mid_design):
         points = wall.centre + np.array([[0.0] * 3, 0.1 * wall.right, 0.1 * wall.down])
         across, down = transport._frame_angles(wall, light, points - light)
         assert abs(across[0]) < 1e-12 and abs(down[0]) < 1e-12
@@ -373,10 +373,10 @@ def test_the_overshoot_around_each_node_is_the_filtered_maximum(rng, nu, nv, k):
 
 
 @pytest.mark.slow
-def test_a_ball_end_tool_radius_keeps_hollows_open(inner_layer, default_design, cyl):
+def test_a_ball_end_tool_radius_keeps_hollows_open(inner_layer, mid_design, cyl):
     """A tight dimple the goals ask for: with a 3 mm ball-end tool the fit opens it up."""
-    walls = room.walls(default_design)
-    light = room.light_position(default_design)
+    walls = room.walls(mid_design)
+    light = room.light_position(mid_design)
     dense = raymap.stratified_photons(*inner_layer, Source(light), 1.5, 512, 256, seed=3)
     wall_of = transport.sector_of(dense.emitted, walls, _nominal(walls), light, 1.5, 45.0)
     nu, nv = 128, 33

@@ -122,8 +122,10 @@ class Build:
         from .. import inner
 
         lens = self.design.lens
-        return inner.load_inner(lens.inner_mesh or None, lens.inner_scale, self.light, lens.outer_radius_mm,
-                                lens.max_offset_mm, lens.height_mm)
+        vertices, faces = inner.load_inner(lens.inner_mesh or None, lens.inner_scale, self.light,
+                                           lens.outer_radius_mm, lens.max_offset_mm, lens.height_mm)
+        inner.check_led_inside(vertices, faces, self.source, f"{self.design.path} with LED={self.led.name}")
+        return vertices, faces
 
     def transport_design(self, opt, inner, **progress) -> tuple[np.ndarray, dict]:
         """``transport.design`` for this build's lens, room, light and limits with the

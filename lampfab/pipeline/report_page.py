@@ -250,10 +250,12 @@ def _sharpness_html(sharp: dict, figures: dict) -> str:
         f" mm</td><td>{w['led_blur_px']['horizontal']:.1f} × {w['led_blur_px']['vertical']:.1f} px</td>"
         f"<td>{w['resolvable_across']:.0f}</td></tr>" for name, w in sharp["walls"].items())
     warnings = "".join(f'<p class="warn">{html.escape(w)}</p>' for w in sharp["warnings"])
-    # The design's light shines every way; a bare package on its board does not (README).
-    traced = ("a rod standing on the lamp's axis, shining all round" if sharp["led"]["shape"] == "cylinder" else
-              "a ball shining evenly in every direction; a bare LED facing up on its board shines up only and "
-              "would light only the top of each picture (README, The LED)")
+    # Which way the light leaves decides where a lens can send it (README, The LED).
+    traced = {"cylinder": "a rod standing on the lamp's axis, shining all round",
+              "disc": "a flat emitter facing up the lamp's axis, as a package on its board shines: brightest "
+                      "straight up, nothing below the horizon",
+              "sphere": "a ball shining evenly in every direction (an LED in an opal ball; a bare LED on its "
+                        "board would light only the top of each picture)"}[sharp["led"]["shape"]]
     return (f"<p>The LED ({html.escape(sharp['led']['part'])}) is not a point: every picture is drawn again from "
             f"each point of its surface, a blur. lampfab traces it as {traced}. plan measured the blur before the "
             f"long stages on a quick design of this image:</p><table><tr><th>wall</th><th>blur across × up</th>"

@@ -10,18 +10,18 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tests.helpers import ROOT, cli, make
+from tests.helpers import ROOT, TINY_LED, cli, make
 
 REPORTS = ["prepare", "plan", "init", "optimize", "solid", "checks", "export", "verify"]
 
 
 @pytest.fixture(scope="module")
 def lamp(tmp_path_factory, tiny_profile):
-    """``make lamp`` of the apple with the tiny profile: (its folder, the run, the BUILD
-    folder, the seconds it took)."""
+    """``make lamp`` of the apple with the tiny profile and a ball LED (``TINY_LED``):
+    (its folder, the run, the BUILD folder, the seconds it took)."""
     build = tmp_path_factory.mktemp("build")
     t0 = time.monotonic()
-    run = make("lamp", f"BUILD={build}", "NAME=apple", f"PROFILE={tiny_profile}")
+    run = make("lamp", f"BUILD={build}", "NAME=apple", f"PROFILE={tiny_profile}", f"LED={TINY_LED}")
     seconds = time.monotonic() - t0
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     return build / "apple", run, build, seconds
@@ -96,7 +96,7 @@ def test_verify_reports_figures_and_report_embeds_images(lamp):
         # The LED's blur measured on the made lens: the kernels reproduce the LED render
         # from the point light's, and Mitsuba's light tracer sees the same walls.
         blur = wall["led_blur_mm"]
-        assert 20 < blur["horizontal"] < 200 and 20 < blur["vertical"] < 200
+        assert 20 < blur["horizontal"] < 400 and 20 < blur["vertical"] < 400  # a 10 mm ball: ~190 x 280 mm
         assert wall["led_kernel_pearson"] > 0.9 and 0 < wall["led_ssim_ceiling"] < wall["led_reference_ssim"] <= 1
         assert wall["mitsuba_pearson"] > 0.9 and wall["mitsuba_point_pearson"] > 0.9
         assert (out / "verify" / f"{name}_mitsuba.png").is_file() and "led_reference" in images
@@ -111,18 +111,24 @@ def test_plan_measures_the_leds_blur_before_the_long_stages(lamp, tmp_path, tiny
     out, _, _, _ = lamp
     plan = json.loads((out / "plan.json").read_text())["figures"]
     sharp = plan["sharpness"]
-    assert sharp["led"]["name"] == "star3535" and plan["finest_detail_mm"] > 20
+    assert sharp["led"]["name"] == TINY_LED and plan["finest_detail_mm"] > 20
     for name, wall in plan["walls"].items():
         assert wall["led_blur_mm"] == sharp["walls"][name]["led_blur_mm"]
-        assert 0 < wall["led_blur_mm"]["horizontal"] < wall["led_blur_mm"]["vertical"] < 300
+        assert 0 < wall["led_blur_mm"]["horizontal"] < wall["led_blur_mm"]["vertical"] < 400
     assert "To halve it" in sharp["halve"]
-    # A smaller LED: the blur shrinks with it, and its smaller board gets a smaller bore.
-    run = make("plan", f"BUILD={tmp_path}", "NAME=apple", f"PROFILE={tiny_profile}", "LED=mini1616")
-    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    small = json.loads((tmp_path / "apple" / "plan.json").read_text())["figures"]
-    assert small["finest_detail_mm"] / plan["finest_detail_mm"] == pytest.approx(0.8 / 1.5, rel=0.2)
-    settings = json.loads((tmp_path / "apple" / "settings.json").read_text())
-    assert settings["led"]["name"] == "mini1616" and settings["fabrication"]["mount_radius_mm"] == 5.0
+    # A smaller flat LED than the default: the blur shrinks with it, and its smaller board
+    # gets a smaller bore.
+    figures = {}
+    for led in ("star3535", "mini1616"):
+        run = make("plan", f"BUILD={tmp_path / led}", "NAME=apple", f"PROFILE={tiny_profile}", f"LED={led}")
+        assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+        figures[led] = json.loads((tmp_path / led / "apple" / "plan.json").read_text())["figures"]
+        assert figures[led]["sharpness"]["led"]["shape"] == "disc"
+    ratio = figures["mini1616"]["finest_detail_mm"] / figures["star3535"]["finest_detail_mm"]
+    assert ratio == pytest.approx(0.8 / 1.5, rel=0.2)
+    mount = {led: json.loads((tmp_path / led / "apple" / "settings.json").read_text())["fabrication"]["mount_radius_mm"]
+             for led in figures}
+    assert mount == {"star3535": 10.0, "mini1616": 5.0}
 
 
 @pytest.mark.slow
@@ -159,13 +165,13 @@ def _written(folder: Path) -> dict:
 def test_rerun_is_a_no_op_and_profile_change_redoes_work(lamp, tmp_path, tiny_profile, tiny_with):
     out, _, build, _ = lamp
     before = _written(out)
-    again = make("lamp", f"BUILD={build}", "NAME=apple", f"PROFILE={tiny_profile}")
+    again = make("lamp", f"BUILD={build}", "NAME=apple", f"PROFILE={tiny_profile}", f"LED={TINY_LED}")
     assert again.returncode == 0
     assert _written(out) == before  # not a file touched, the reports and settings.json included
     copy = _copy_build(lamp, tmp_path)
     changed = tiny_with("tiny2.toml", replace=(("\nphotons = 50000", "\nphotons = 60000"),))
     plan_before = (copy / "plan.json").stat().st_mtime_ns
-    plan = make("plan", f"BUILD={copy.parent}", "NAME=apple", f"PROFILE={changed}")
+    plan = make("plan", f"BUILD={copy.parent}", "NAME=apple", f"PROFILE={changed}", f"LED={TINY_LED}")
     assert plan.returncode == 0
     redone = json.loads((copy / "plan.json").read_text())
     assert (copy / "plan.json").stat().st_mtime_ns > plan_before
@@ -228,6 +234,31 @@ def test_help_lists_the_stages():
 
 @pytest.mark.slow
 @pytest.mark.e2e
+def test_the_default_flat_led_lights_each_picture_top_to_bottom(tmp_path, tiny_with):
+    """The default LED on its board shines up only.  Designed for that, low in the cavity
+    as the default profile has it, the lamp still lights each picture's lower half: a
+    tiny design puts 31-32 % of the light there where the apple has 59 %; a lens designed
+    for a ball and lit by this LED put 4-9 % there (bench/led_emission.py)."""
+    profile = tiny_with("low.toml", replace=(("light_height_mm = 45.0", "light_height_mm = 15.0"),))
+    run = make("lamp", f"BUILD={tmp_path}", "NAME=apple", f"PROFILE={profile}")
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    out = tmp_path / "apple"
+    assert json.loads((out / "design.json").read_text())["light"]["shape"] == "disc"
+    assert "with the flat LED 1.5 mm facing up" in run.stdout
+    walls = json.loads((out / "verify.json").read_text())["figures"]["walls"]
+    for name, wall in walls.items():
+        led = np.load(out / "verify" / f"{name}.npz")["led"]
+        target = np.asarray(Image.open(out / "targets" / f"{name}.png"), np.float64)
+        rows = led.shape[0]
+        lower = led[rows // 2:].sum() / led.sum()
+        wanted = target[target.shape[0] // 2:].sum() / target.sum()
+        assert lower > 0.4 * wanted, (name, lower, wanted)
+        # A tiny design of a flat LED (two steps on 32 x 9 nodes) reaches r 0.55-0.65.
+        assert wall["led_pearson"] > 0.45, name
+
+
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_floor_and_per_wall_targets(tmp_path, tiny_with):
     """A fourth surface, the floor behind the lamp, and an image of its own on the floor
     (the right way round) and on the left wall."""
@@ -236,12 +267,13 @@ def test_floor_and_per_wall_targets(tmp_path, tiny_with):
     profile = tiny_with("floor.toml", replace=(
         ('walls = ["front", "left", "right"]', 'walls = ["front", "left", "right", "floor"]'),
         ("grid_u = 32", "grid_u = 64"), ("grid_v = 9", "grid_v = 17"), ("\nphotons = 50000", "\nphotons = 200000")))
+    # The floor's light leaves below the horizon: an LED that shines all round.
     ell = np.zeros((120, 160), np.uint8)  # an L: mirrored or upside down, it scores far lower
     ell[10:70, 10:90] = 255
     ell[70:110, 10:40] = 255
     Image.fromarray(ell).save(tmp_path / "ell.png")
     run = make("verify", f"BUILD={tmp_path / 'b'}", "NAME=four", f"PROFILE={profile}",
-               f"TARGET_FLOOR={tmp_path / 'ell.png'}", f"TARGET_LEFT={ROOT / 'examples' / 'star.png'}")
+               f"TARGET_FLOOR={tmp_path / 'ell.png'}", f"TARGET_LEFT={ROOT / 'examples' / 'star.png'}", "LED=opal10")
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     out = tmp_path / "b" / "four"
     design = json.loads((out / "design.json").read_text())

@@ -17,7 +17,7 @@ from PIL import Image
 from lampfab import inner, profile, room, targets
 from lampfab.errors import LampfabError
 
-from tests.helpers import ROOT, cli, make
+from tests.helpers import ROOT, TINY_LED, cli, make
 
 
 # -- text ---------------------------------------------------------------------------
@@ -127,7 +127,7 @@ def test_panorama_columns_land_on_the_walls_they_face():
 @pytest.fixture(scope="module")
 def text_lamp(tmp_path_factory, tiny_profile):
     build = tmp_path_factory.mktemp("text")
-    run = make("lamp", f"BUILD={build}", 'TEXT=Hi there', f"PROFILE={tiny_profile}")
+    run = make("lamp", f"BUILD={build}", 'TEXT=Hi there', f"PROFILE={tiny_profile}", f"LED={TINY_LED}")
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     return build / "text", run
 
@@ -163,9 +163,9 @@ def test_text_lamp_end_to_end(text_lamp):
     assert re.search(r"front r \S+ SSIM \S+ \d/2 words read", lines[-2]), lines[-2]
     assert re.search(r"OCR reads \d of its 6 words on the walls \(\d in the sharp targets\)",
                      (out / "report.html").read_text())
-    # The report says what light the lens was designed for, and what a bare LED would do.
+    # The report says what light the lens was designed for.
     page = (out / "report.html").read_text()
-    assert "traces it as a ball shining evenly in every direction; a bare LED facing up" in page
+    assert "traces it as a ball shining evenly in every direction (an LED in an opal ball" in page
     # plan read them too: sharp, and blurred by its coarse design's LED kernels.
     plan = json.loads((out / "plan.json").read_text())["figures"]["sharpness"]["walls"]
     assert all(f["words"] == 2 and 0 <= f["perfect_words_read"] <= 2 and 0 <= f["target_words_read"] <= 2
@@ -255,7 +255,7 @@ def test_report_loads_every_image_in_a_real_browser(text_lamp, tmp_path):
 @pytest.mark.e2e
 def test_panorama_lamp_end_to_end(tmp_path, tiny_profile):
     run = make("lamp", f"BUILD={tmp_path}", f"PANORAMA={ROOT / 'examples' / 'panorama.png'}",
-               f"PROFILE={tiny_profile}")
+               f"PROFILE={tiny_profile}", f"LED={TINY_LED}")
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     out = tmp_path / "panorama"
     prepared = json.loads((out / "prepare.json").read_text())
