@@ -118,14 +118,20 @@ def write_png(path, image: np.ndarray, normalize: bool = True) -> None:
     """
     from PIL import Image
 
+    with atomic_path(path, suffix=".png") as tmp:
+        Image.fromarray(srgb8(image, normalize)).save(tmp, format="PNG")
+
+
+def srgb8(image: np.ndarray, normalize: bool = True) -> np.ndarray:
+    """A linear float image as 8-bit sRGB, same shape, uint8; ``normalize`` as
+    ``write_png``'s."""
     img = np.asarray(image, dtype=np.float64)
     if normalize:
         top = np.percentile(img, 99.5) if img.size else 1.0
         img = img / top if top > 0 else img
     img = np.clip(img, 0.0, 1.0)
     srgb = np.where(img <= 0.0031308, 12.92 * img, 1.055 * np.power(img, 1 / 2.4) - 0.055)
-    with atomic_path(path, suffix=".png") as tmp:
-        Image.fromarray(np.round(srgb * 255).astype(np.uint8)).save(tmp, format="PNG")
+    return np.round(srgb * 255).astype(np.uint8)
 
 
 def write_linear_png16(path, image: np.ndarray) -> None:

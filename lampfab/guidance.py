@@ -48,6 +48,14 @@ def orientation(wall_names: list[str]) -> str:
             "much the same from every side.")
 
 
+# Where the LED's emitter goes and how the design assumes it shines, by its shape.
+_MOUNTED = {"disc": "its emitting face level and facing straight up,", "sphere": "its centre",
+            "cylinder": "standing upright, its middle"}
+_SHINES = {"disc": "it shines up from there as a package on its board does, brightest straight up and nothing "
+                   "below the horizon (mounted tilted or lower, the pictures move and darken)",
+           "sphere": "it shines evenly in every direction from there", "cylinder": "it shines all round from there"}
+
+
 def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: dict) -> list[str]:
     """Plain-text paragraphs: orientation, the LED, finishing, the polishing allowance."""
     allowance = study["allowance_mm"] * 1000
@@ -57,8 +65,8 @@ def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: d
     out = [
         orientation(wall_names),
         (f"The LED ({led.part}) goes up through the bore in the base ({2 * fab.mount_radius_mm:g} mm across) on "
-         f"a stalk, its emitter at the lamp's centre, {light_mm[2]:g} mm above the base on the axis; the design "
-         f"assumes it shines in every direction from there, with the size of its profile ({led.name})."),
+         f"a stalk, {_MOUNTED[led.shape]} {light_mm[2]:g} mm above the base on the axis; the design assumes "
+         f"{_SHINES[led.shape]}, with the size of its profile ({led.name})."),
         _FINISH[fab.process],
         (f"Polishing allowance: uneven removal of up to {bound}{allowance:.0f} um (peak, over patches of "
          f"~{study['correlation_mm']:g} mm) keeps every wall's Pearson r within {study['r_drop']} of the design. "

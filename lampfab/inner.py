@@ -112,8 +112,10 @@ def check_led_inside(vertices: np.ndarray, faces: np.ndarray, source, where: str
     offsets = np.array([[0, 0, up], [0, 0, -up], [r, 0, 0], [-r, 0, 0], [0, r, 0], [0, -r, 0]])
     for point in source.position + offsets:
         if abs(winding_number(vertices, faces, point) - 1.0) > 0.5:
-            raise LampfabError(f"{where}: the LED ({source.describe()}) reaches {np.round(point, 2).tolist()} mm, "
-                               f"outside the cavity; move [lens] light_height_mm or choose a smaller LED")
+            part = {"disc": "face", "sphere": "ball", "cylinder": f"{source.length_mm:g} mm filament"}[source.shape]
+            raise LampfabError(f"{where}: the LED's glowing {part} ({source.radius_mm:g} mm radius) reaches "
+                               f"{np.round(point, 2).tolist()} mm, outside the cavity; move [lens] light_height_mm "
+                               f"or choose a smaller LED")
 
 
 def winding_number(vertices: np.ndarray, faces: np.ndarray, point: np.ndarray) -> float:

@@ -62,6 +62,10 @@ def test_guidance_names_the_sides_finishing_and_allowance():
     assert "2000 grit" in joined and "Anneal" in joined and "witness lines" in joined
     assert "up to 50 um" in joined and "costs r 0.004 (within it)" in joined
     assert "25 mm across" in joined and "Cree XLamp XQ-D" in joined and "(mini1616)" in joined
+    # A package on its board is mounted facing up, and the maker is told so.
+    assert "facing straight up, 45 mm above the base" in joined and "nothing below the horizon" in joined
+    ball = " ".join(guidance.advice(fab, load_led("opal10"), ["front"], np.array([0.0, 0.0, 45.0]), study))
+    assert "its centre 45 mm above the base" in ball and "evenly in every direction" in ball
     page = guidance.html(text, study)
     assert page.count("<tr>") == 5 and '<td class="fail">0.050</td>' in page and "20 um (profile)" in page
     sla = " ".join(guidance.advice(load_fabrication("sla_resin"), load_led("star3535"), ["front"], np.zeros(3),

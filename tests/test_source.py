@@ -66,3 +66,15 @@ def test_the_source_method_refuses_a_flat_led(tmp_path):
     opt = dataclasses.replace(build.design.optimize, method="ptracer", design_light="point")
     with pytest.raises(LampfabError, match='method "ptracer" .* LED=flat shines up only'):
         build.optimizer(opt, None, [])
+
+
+def test_an_led_that_pokes_out_of_the_cavity_is_refused(tmp_path):
+    """A 26 mm filament 15 mm up the lens would reach through the cavity's floor (10 mm)."""
+    from lampfab import pipeline
+    from lampfab.errors import LampfabError
+
+    with pytest.raises(LampfabError, match=r"glowing 26 mm filament \(0.8 mm radius\) reaches \[0.0, 0.0, 2.0\] mm, "
+                                           r"outside the cavity; move \[lens\] light_height_mm"):
+        pipeline.Build.open(tmp_path, "default", "sla_resin", "filament26").inner()
+    pipeline.Build.open(tmp_path, "floor", "sla_resin", "filament26").inner()  # at mid-height it fits
+    pipeline.Build.open(tmp_path, "default", "sla_resin", "star3535").inner()
