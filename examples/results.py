@@ -55,7 +55,7 @@ CASES = (
     Case("camera", "photograph (scikit-image's cameraman)", (f"TARGET={INPUTS / 'camera.png'}",), "camera"),
     Case("rocket", "photograph (scikit-image's launch pad at dusk)", (f"TARGET={INPUTS / 'rocket.png'}",), "rocket"),
     Case("text", "four words: \"Sweet dreams little one\"", ("TEXT=Sweet dreams little one",)),
-    Case("text_mini1616", "the four words with a 1.6 mm LED (LED=mini1616), as plan recommends",
+    Case("text_mini1616", "the four words with a 1.6 mm LED (LED=mini1616), half the blur",
          ("TEXT=Sweet dreams little one", "LED=mini1616")),
     Case("words", "four other words: \"Welcome home dear friend\"", ("TEXT=Welcome home dear friend",)),
     Case("panorama", "360° panorama", ("PANORAMA=examples/panorama.png",)),

@@ -4,9 +4,10 @@ verify traces the exported lens with lampfab's own photon tracer (``trace``).  H
 Mitsuba's ``ptracer`` renders the same ``design.json`` instead: the lens read back from
 its STL as a ``dielectric`` of the design's refractive index with flat facet normals
 (what is made), the LED as an emitter of its real shape and size (a sphere, a
-filament's cylinder, a flat disc facing up; or its point light), one diffuse wall at a time.  Mitsuba handles Fresnel at every surface, total internal
-reflection and every bounce in its own code, so agreement says the walls verify shows
-are the walls the lamp will light, not an artefact of one tracer.
+filament's cylinder, a flat disc facing up; or its point light), one diffuse wall at a
+time.  Mitsuba handles Fresnel at every surface, total internal reflection and every
+bounce in its own code, so agreement says the walls verify shows are the walls the lamp
+will light, not an artefact of one tracer.
 
 Each wall is seen by a perspective camera on the wall's axis, facing it squarely from
 the lamp's side, just clear of the lens (``ptracer`` connects light paths to a
