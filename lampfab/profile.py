@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import LampfabError
+from .source import SHAPES
 
 PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
 DEFAULT_LED = "star3535"
@@ -172,7 +173,7 @@ class Fabrication:
     path: str = ""
 
 
-LED_SHAPES = ("sphere", "cylinder", "disc")  # source.SHAPES
+LED_SHAPES = SHAPES  # what trace and the design know how to shine
 
 
 @dataclass(frozen=True)
