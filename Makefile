@@ -11,7 +11,7 @@ space  := $(subst ,, )
 NAME    ?= $(if $(TEXT),text,$(basename $(notdir $(subst $(space),_,$(or $(PANORAMA),$(TARGET))))))
 PROFILE ?= default
 FAB     ?= sla_resin
-LED     ?= star3535
+LED     ?= post3535
 ALLOW_FAIL ?=
 TARGET_FRONT ?=
 TARGET_LEFT  ?=
@@ -36,7 +36,7 @@ lamp: $(B)/report.html
 	@$(PY) -m lampfab.cli summary $(ARGS)
 
 help:
-	@echo "make lamp TARGET=image.png [NAME=..] [PROFILE=draft|quick|default|...] [FAB=sla_resin|acrylic_cnc4|...] [LED=star3535|...]"
+	@echo "make lamp TARGET=image.png [NAME=..] [PROFILE=draft|quick|default|...] [FAB=sla_resin|acrylic_cnc4|...] [LED=post3535|...]"
 	@printf '%s\n' 'make lamp TEXT="Happy birthday"      words instead of an image (build/text/); a typed \n breaks a line'
 	@echo "make lamp PANORAMA=examples/panorama.png   a 360° panorama wrapped around the room"
 	@echo "make <stage> TARGET=..   one stage and what it needs: prepare plan init optimize solid fabcheck export verify"

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """What a lens projects with the LED it was designed for, against the other kind of LED
-of the same size at the same place: a glowing ball and a flat LED facing up.
+of the same size at the same place: a glowing ball, a flat LED facing up, flat LEDs
+facing the walls.
 
     .venv/bin/python bench/led_emission.py build/apple [build/text ...] [--photons 4e6]
         [--picture bench/log/led_beam.png]
@@ -14,7 +15,8 @@ by the other shows what choosing the wrong part costs.  This script traces each 
 exported STL as verify does (64 px, stratified photons) with the build's own LED and
 with the other shape, and per wall prints the render's r and SSIM against the target,
 the wall's light (as a share of the emitted light) and the share of it in the picture's
-lower half.  ``--picture`` also writes each build's front wall as a row: the target,
+lower half.  A lens designed for LEDs facing the walls (``shape = "post"``) is lit by
+one such package facing up at the post's place instead.  ``--picture`` also writes each build's front wall as a row: the target,
 then the lens with the LED it was designed for, then with the other LED.
 """
 
@@ -32,15 +34,15 @@ sys.path.insert(0, str(ROOT))
 from lampfab import artifacts, metrics, trace, verify  # noqa: E402
 from lampfab.source import Source  # noqa: E402
 
-OTHER = {"sphere": "disc", "disc": "sphere"}
-NAMES = {"sphere": "ball", "disc": "flat, facing up"}
+OTHER = {"sphere": "disc", "disc": "sphere", "post": "disc"}
+NAMES = {"sphere": "ball", "disc": "flat, facing up", "post": "facing the walls"}
 
 
 def figures(loaded: verify.Loaded, photons: int, seed: int) -> dict[str, list[dict]]:
     """{LED: per wall {"wall", "r", "ssim", "share", "lower_half", "image"}} for the
     design's own LED and the other shape of the same radius."""
     own = Source.from_json(loaded.design["light"])
-    other = dataclasses.replace(own, shape=OTHER[own.shape])
+    other = dataclasses.replace(own, shape=OTHER[own.shape], facing_deg=(), offset_mm=0.0)
     out = {}
     for name, source in ((f"{NAMES[own.shape]} (designed for)", own), (NAMES[other.shape], other)):
         images, _ = verify.render_design(loaded, 64, photons, seed, 8,

@@ -44,6 +44,12 @@ class Case:
     sample: str = ""            # a scikit-image sample the case reads from INPUTS
     tables: tuple[str, ...] = ("summary", "full", "times", "reflections")  # the tables it is a row of
     before: str = ""            # the case this one is the point-light design of (LED-aware design's "before")
+    edit: tuple[str, str] = ()  # (line, its replacement): the default profile with that line changed
+
+
+# The default profile designing for the ideal point light, and a flat LED facing up where it serves best.
+POINT_DESIGN = ('design_light = "led"', 'design_light = "point"')
+LOW_LIGHT = ("light_height_mm = 45.0", "light_height_mm = 15.0")
 
 
 CASES = (
@@ -55,39 +61,41 @@ CASES = (
     Case("camera", "photograph (scikit-image's cameraman)", (f"TARGET={INPUTS / 'camera.png'}",), "camera"),
     Case("rocket", "photograph (scikit-image's launch pad at dusk)", (f"TARGET={INPUTS / 'rocket.png'}",), "rocket"),
     Case("text", "four words: \"Sweet dreams little one\"", ("TEXT=Sweet dreams little one",)),
-    Case("text_mini1616", "the four words with a 1.6 mm LED (LED=mini1616), half the blur",
-         ("TEXT=Sweet dreams little one", "LED=mini1616")),
+    Case("text_post1616", "the four words with 1.6 mm LEDs (LED=post1616), half the blur",
+         ("TEXT=Sweet dreams little one", "LED=post1616")),
     Case("words", "four other words: \"Welcome home dear friend\"", ("TEXT=Welcome home dear friend",)),
     Case("panorama", "360° panorama", ("PANORAMA=examples/panorama.png",)),
-    Case("apple_die1mm", "the apple with a 1 mm die (LED=die1mm)", ("TARGET=examples/apple.png", "LED=die1mm")),
-    Case("apple_floor", "the apple on three walls and the floor with an LED in a 10 mm opal ball (PROFILE=floor "
-         "LED=opal10)", ("TARGET=examples/apple.png", "PROFILE=floor", "LED=opal10"), tables=("full", "times")),
-    Case("apple_hires", "the apple at 128 px with a 1 mm die (PROFILE=hires LED=die1mm)",
-         ("TARGET=examples/apple.png", "PROFILE=hires", "LED=die1mm"), tables=("full", "times")),
+    Case("apple_star3535", "the apple with one package facing up, 15 mm up the lens (LED=star3535)",
+         ("TARGET=examples/apple.png", "LED=star3535"), edit=LOW_LIGHT),
+    Case("apple_floor", "the apple on three walls and the floor, four LEDs on the post (PROFILE=floor)",
+         ("TARGET=examples/apple.png", "PROFILE=floor"), tables=("full", "times")),
+    Case("apple_hires", "the apple at 128 px with 1.6 mm LEDs (PROFILE=hires LED=post1616)",
+         ("TARGET=examples/apple.png", "PROFILE=hires", "LED=post1616"), tables=("full", "times")),
     Case("panel", "the source's prior-work panel (PROFILE=panel)", ("PROFILE=panel",), tables=("full", "times")),
     Case("apple_cnc4", "the apple milled on 4 axes (FAB=acrylic_cnc4)", ("TARGET=examples/apple.png",
                                                                          "FAB=acrylic_cnc4"), tables=("milled", "times")),
     Case("apple_cnc3", "the apple milled on 3 axes (FAB=acrylic_cnc3)", ("TARGET=examples/apple.png",
                                                                          "FAB=acrylic_cnc3"), tables=("milled", "times")),
     # The same lamps designed for the ideal point light, as before the design knew the LED.
-    Case("apple_point_design", "", ("TARGET=examples/apple.png",), tables=("led_design",), before="apple"),
-    Case("text_point_design", "", ("TEXT=Sweet dreams little one",), tables=("led_design",), before="text"),
+    Case("apple_point_design", "", ("TARGET=examples/apple.png",), tables=("led_design",), before="apple",
+         edit=POINT_DESIGN),
+    Case("text_point_design", "", ("TEXT=Sweet dreams little one",), tables=("led_design",), before="text",
+         edit=POINT_DESIGN),
     Case("camera_point_design", "", (f"TARGET={INPUTS / 'camera.png'}",), "camera", tables=("led_design",),
-         before="camera"),
+         before="camera", edit=POINT_DESIGN),
 )
 
-# The default profile designing for the ideal point light: a profile copy with one line changed.
-POINT_DESIGN_PROFILE = INPUTS / "point_design.toml"
-
-
-def _point_design_profile() -> Path:
+def _edited_profile(case: Case) -> Path:
+    """The default profile with ``case.edit``'s line changed, written for the case."""
+    line, replacement = case.edit
     text = (ROOT / "profiles" / "default.toml").read_text()
-    edited = re.sub(r'^design_light = "led"', 'design_light = "point"', text, count=1, flags=re.M)
+    edited = re.sub(rf"^{re.escape(line)}", replacement, text, count=1, flags=re.M)
     if edited == text:
-        sys.exit("profiles/default.toml has no line 'design_light = \"led\"' to change")
+        sys.exit(f"profiles/default.toml has no line '{line}' to change")
     INPUTS.mkdir(parents=True, exist_ok=True)
-    POINT_DESIGN_PROFILE.write_text(edited)
-    return POINT_DESIGN_PROFILE
+    path = INPUTS / f"{case.name}.toml"
+    path.write_text(edited)
+    return path
 
 
 def run(case: Case, verify_only: bool = False) -> float:
@@ -98,7 +106,7 @@ def run(case: Case, verify_only: bool = False) -> float:
 
         INPUTS.mkdir(parents=True, exist_ok=True)
         io.imsave(INPUTS / f"{case.sample}.png", getattr(data, case.sample)(), check_contrast=False)
-    profile = (f"PROFILE={_point_design_profile()}",) if case.before else ()
+    profile = (f"PROFILE={_edited_profile(case)}",) if case.edit else ()
     if verify_only:
         # The stage itself, not make: make would redo the whole build when the resolved
         # profiles changed since it was made.

@@ -86,14 +86,14 @@ def _scene(mi, folder: Path, vertices: np.ndarray, faces: np.ndarray, ior: float
            walls: list[Wall], light: list[np.ndarray], floor_z: float) -> dict:
     """The room: the lens as glass, the glowing LED, each wall lit by its traced ``light``
     (per wall of ``room_walls``: (rows, cols) flux), the floor and the lamp's table."""
-    from .mitsuba_reference import light as led_emitter
+    from .mitsuba_reference import lights as led_emitters
 
     top = max(float(np.percentile(img[img > 0], 99.5)) if (img > 0).any() else 0.0 for img in light) or 1.0
     reach = max(float(np.abs(w.centre[:2]).max()) for w in walls) * 3.0
     grey = {"type": "diffuse", "reflectance": ROOM_GREY}
     scene = {"type": "scene",
              "sky": {"type": "constant", "radiance": {"type": "spectrum", "value": AMBIENT}},
-             "led": led_emitter(mi, _visible(Source.from_json(led)), LED_RADIANCE),
+             **led_emitters(mi, _visible(Source.from_json(led)), LED_RADIANCE),
              "lens": {"type": "ply", "filename": _ply(vertices, faces, folder), "face_normals": True,
                       "bsdf": {"type": "dielectric", "int_ior": float(ior), "ext_ior": 1.0}},
              "floor": {"type": "rectangle", "bsdf": grey,

@@ -40,7 +40,7 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 def _led(p: argparse.ArgumentParser) -> None:
     # The literal, not profile.DEFAULT_LED: --help must not import the profiles' module.
-    p.add_argument("--led", default="star3535", help="LED profile name or .toml path (default: star3535)")
+    p.add_argument("--led", default="post3535", help="LED profile name or .toml path (default: post3535)")
 
 
 def _targets(p: argparse.ArgumentParser, with_image: bool = True) -> None:

@@ -50,10 +50,13 @@ def orientation(wall_names: list[str]) -> str:
 
 # Where the LED's emitter goes and how the design assumes it shines, by its shape.
 _MOUNTED = {"disc": "its emitting face level and facing straight up,", "sphere": "its centre",
-            "cylinder": "standing upright, its middle"}
+            "cylinder": "standing upright, its middle",
+            "post": "each LED's emitting face upright and square to its wall, their middles"}
 _SHINES = {"disc": "it shines up from there as a package on its board does, brightest straight up and nothing "
                    "below the horizon (mounted tilted or lower, the pictures move and darken)",
-           "sphere": "it shines evenly in every direction from there", "cylinder": "it shines all round from there"}
+           "sphere": "it shines evenly in every direction from there", "cylinder": "it shines all round from there",
+           "post": "each LED shines level towards its wall from there, brightest straight out (turned on the post, "
+                   "the pictures slide sideways)"}
 
 
 def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: dict) -> list[str]:

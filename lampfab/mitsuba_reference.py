@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from .room import Wall
-from .source import Source
+from .source import FLAT, Source
 
 # The camera stands this far on the lamp's side of the lens's nearest point: the lens
 # must lie wholly behind it, out of its view.
@@ -52,20 +52,33 @@ def _lens(mi, vertices: np.ndarray, faces: np.ndarray, ior: float):
     return mesh
 
 
-def light(mi, source: Source, radiance: float = 1.0) -> dict:
-    """The LED ``source`` as a Mitsuba emitter: a point light (a ball's or a filament's
-    point), a glowing sphere, a glowing cylinder on the lamp axis (a filament; open ends,
-    as ``trace.emit``'s), or a glowing disc facing up (Mitsuba's area lights shine from
-    the front only, as a Lambertian disc does; its point is a disc of
-    ``POINT_DISC_RADIUS_MM``: Mitsuba has no point light with a cosine beam).  Its
-    surface is black: light coming back to it is absorbed."""
+def lights(mi, source: Source, radiance: float = 1.0) -> dict:
+    """The LED ``source`` as Mitsuba emitters, by scene key: a point light (a ball's or a
+    filament's point), a glowing sphere, a glowing cylinder on the lamp axis (a filament;
+    open ends, as ``trace.emit``'s), or glowing discs (a disc facing up, a post's facing
+    out: Mitsuba's area lights shine from the front only, as a Lambertian disc does; a
+    point is a disc of ``POINT_DISC_RADIUS_MM``: Mitsuba has no point light with a cosine
+    beam).  Their surfaces are black: light coming back to them is absorbed."""
     centre = source.position
     body = {"bsdf": {"type": "diffuse", "reflectance": 0.0},
             "emitter": {"type": "area", "radiance": {"type": "spectrum", "value": radiance}}}
-    if source.facing_up:
+    if source.shape in FLAT:
         r = max(source.radius_mm, POINT_DISC_RADIUS_MM)
-        return {"type": "disk", "to_world": mi.ScalarTransform4f().translate(centre.tolist()).scale([r, r, 1.0]),
-                **body}
+        faces = centre + source.offset_mm * source.normals
+        return {f"light_{k}": {"type": "disk", "to_world": mi.ScalarTransform4f().look_at(
+                    face.tolist(), (face + n).tolist(), _across(n).tolist()).scale([r, r, 1.0]), **body}
+                for k, (face, n) in enumerate(zip(faces, source.normals))}
+    return {"light": _light(mi, source, centre, body, radiance)}
+
+
+def _across(normal: np.ndarray) -> np.ndarray:
+    """(3,) a unit vector square to ``normal`` (3,), for look_at's up."""
+    other = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    return np.cross(normal, other) / np.linalg.norm(np.cross(normal, other))
+
+
+def _light(mi, source: Source, centre: np.ndarray, body: dict, radiance: float) -> dict:
+    """``lights``' one emitter of a ball or a filament (or their point)."""
     if source.radius_mm <= 0:
         return {"type": "point", "position": centre.tolist(), "intensity": {"type": "spectrum", "value": radiance}}
     if source.shape == "cylinder":
@@ -97,7 +110,7 @@ def render(vertices: np.ndarray, faces: np.ndarray, ior: float, source: Source, 
            shapes: list[tuple[int, int]], photons: int, seed: int) -> list[np.ndarray]:
     """Mitsuba's ptracer picture of each wall: (rows, cols) float64 per wall, proportional
     to its flux per pixel.  ``vertices`` (n, 3) mm and ``faces`` (m, 3): the closed lens
-    with outward normals; the LED as ``light``'s; about ``photons`` light paths per wall."""
+    with outward normals; the LED as ``lights``'; about ``photons`` light paths per wall."""
     from .mi_env import mitsuba
 
     mi = mitsuba()
@@ -107,7 +120,7 @@ def render(vertices: np.ndarray, faces: np.ndarray, ior: float, source: Source, 
         spp = max(1, int(round(photons / (shape[0] * shape[1]))))
         scene = mi.load_dict({
             "type": "scene", "integrator": {"type": "ptracer", "max_depth": MAX_DEPTH, "hide_emitters": True},
-            "lens": lens, "light": light(mi, source),
+            "lens": lens, **lights(mi, source),
             "wall": {"type": "rectangle", "to_world": _rectangle(mi, wall),
                      "bsdf": {"type": "diffuse", "reflectance": 1.0}},
             "camera": wall_camera(mi, wall, vertices, shape, spp)})

@@ -18,7 +18,7 @@ from .errors import LampfabError
 from .source import SHAPES
 
 PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
-DEFAULT_LED = "star3535"
+DEFAULT_LED = "post3535"
 WALL_NAMES = ("front", "left", "right", "floor")
 LENS_KINDS = ("cylinder", "panel")
 # Per-view losses (lampfab.losses computes them) and view schedules.  The numpy-only ones
@@ -184,10 +184,12 @@ class Led:
     part: str = _spec("", doc="what to buy, in words")
     shape: str = _spec("sphere", choices=LED_SHAPES,
                        doc="sphere: a ball glowing every way; cylinder: a filament standing on the lamp axis; "
-                           "disc: a flat emitter facing up (a package on its board), nothing below the horizon")
-    radius_mm: float = _spec(1.5, 0.0, 20.0, doc="emitting radius (the ball's, the filament's or the disc's); "
-                                                   "0: a point")
+                           "disc: a flat emitter facing up (a package on its board), nothing below the horizon; "
+                           "post: one flat emitter per wall on a post on the axis, each facing its wall")
+    radius_mm: float = _spec(1.5, 0.0, 20.0, doc="emitting radius (the ball's, the filament's or the disc's, "
+                                                   "a post's LEDs' each); 0: a point")
     length_mm: float = _spec(0.0, 0.0, 100.0, doc="emitting length of a filament (cylinder only)")
+    offset_mm: float = _spec(0.0, 0.0, 20.0, doc="how far out from the axis a post's emitting faces are (post only)")
     board_diameter_mm: float = _spec(20.0, 1.0, 200.0, doc="the board or holder that must pass through the bore")
     flux_lm: float = _spec(100.0, 0.1, 100_000.0, doc="typical luminous flux (lumen) at its usual current")
     path: str = ""
@@ -306,6 +308,8 @@ def load_led(name_or_path: str) -> Led:
         raise LampfabError(f"{path}: length_mm {led.length_mm}: a filament (shape cylinder) needs a length above 0")
     if led.shape != "cylinder" and led.length_mm:
         raise LampfabError(f"{path}: length_mm applies only to shape = \"cylinder\" (a filament)")
+    if led.shape != "post" and led.offset_mm:
+        raise LampfabError(f"{path}: offset_mm applies only to shape = \"post\" (LEDs on a post's faces)")
     return dataclasses.replace(led, name=led.name or path.stem, path=str(path))
 
 

@@ -1,6 +1,6 @@
 """The LED as the optics see it: where it is, what glows, and which way it shines.
 
-Three shapes (``profile.LED_SHAPES``):
+Four shapes (``profile.LED_SHAPES``):
 
 - ``sphere``: a ball glowing the same in every direction (an LED inside a small opal
   ball).
@@ -8,9 +8,14 @@ Three shapes (``profile.LED_SHAPES``):
 - ``disc``: a flat emitter facing up (+z), Lambertian: an LED package on its board, the
   board passing up through the bore.  Its intensity falls as the cosine of the angle
   from straight up, and nothing goes below the horizon.
+- ``post``: one such flat LED per wall, on the faces of a small post standing on the
+  axis, each ``offset_mm`` out from the axis and facing its wall's sector of the lens
+  level (``facing_deg``, the sectors' centres): light goes out level, where the walls
+  are, as the ball's does, from parts a maker can buy.
 
 A point (``radius_mm`` 0) keeps its shape's beam: a ball's or a filament's shines
-evenly every way, a disc's as the cosine from straight up.  So a design's "point light"
+evenly every way, a disc's as the cosine from straight up, a post's as its LEDs' cosines,
+each from the centre of its face.  So a design's "point light"
 is always the same beam from one point: what a perfect lens would show with an
 infinitely small emitter of that kind.  (A filament's own light is brightest side-on;
 its point keeps the ball's even beam, which its length's blur dwarfs.)
@@ -23,28 +28,38 @@ from dataclasses import dataclass
 
 import numpy as np
 
-SHAPES = ("sphere", "cylinder", "disc")
+SHAPES = ("sphere", "cylinder", "disc", "post")
+FLAT = ("disc", "post")  # Lambertian faces: light only in front of each
 
 
 @dataclass(frozen=True)
 class Source:
     """An LED: ``position_mm`` (x, y, z) mm its centre (a disc's emitting face);
     ``shape`` one of ``SHAPES``; ``radius_mm`` the ball's, the filament's or the disc's
-    (0: a point with the shape's beam); ``length_mm`` a filament's emitting length."""
+    (0: a point with the shape's beam); ``length_mm`` a filament's emitting length;
+    ``facing_deg`` the azimuths (degrees from +x) a post's LEDs face, ``offset_mm`` how
+    far out from the axis their faces are."""
     position_mm: tuple[float, float, float]
     shape: str = "sphere"
     radius_mm: float = 0.0
     length_mm: float = 0.0
+    facing_deg: tuple[float, ...] = ()
+    offset_mm: float = 0.0
 
     def __post_init__(self):
         if self.shape not in SHAPES:
             raise ValueError(f"shape {self.shape!r}: one of {', '.join(SHAPES)}")
+        if (self.shape == "post") != bool(self.facing_deg):
+            raise ValueError("a post, and only a post, faces azimuths (facing_deg)")
         object.__setattr__(self, "position_mm", tuple(float(c) for c in self.position_mm))
+        object.__setattr__(self, "facing_deg", tuple(float(a) for a in self.facing_deg))
 
     @staticmethod
-    def of_led(position_mm: np.ndarray, led) -> "Source":
-        """A ``profile.Led`` at ``position_mm`` (3,) mm."""
-        return Source(tuple(position_mm), led.shape, led.radius_mm, led.length_mm)
+    def of_led(position_mm: np.ndarray, led, facing_deg=()) -> "Source":
+        """A ``profile.Led`` at ``position_mm`` (3,) mm; a post's LEDs face the azimuths
+        ``facing_deg`` (degrees, the walls' sectors)."""
+        facing = tuple(facing_deg) if led.shape == "post" else ()
+        return Source(tuple(position_mm), led.shape, led.radius_mm, led.length_mm, facing, led.offset_mm)
 
     @staticmethod
     def from_json(light: dict) -> "Source":
@@ -52,7 +67,8 @@ class Source:
         its shape is a filament when it has a length, else a ball."""
         length = light.get("length", 0.0)
         shape = light.get("shape") or ("cylinder" if length > 0 else "sphere")
-        return Source(tuple(light["position"]), shape, light["radius"], length)
+        return Source(tuple(light["position"]), shape, light["radius"], length, tuple(light.get("facing_deg", ())),
+                      light.get("offset_mm", 0.0))
 
     @property
     def position(self) -> np.ndarray:
@@ -64,17 +80,27 @@ class Source:
         """True when no light leaves below the horizon."""
         return self.shape == "disc"
 
+    @property
+    def normals(self) -> np.ndarray:
+        """(k, 3) float64: the unit normals of a disc's or a post's flat emitters."""
+        if self.shape == "disc":
+            return np.array([[0.0, 0.0, 1.0]])
+        a = np.radians(np.asarray(self.facing_deg))
+        return np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)
+
     def point(self) -> "Source":
-        """The same beam from a point at the centre."""
+        """The same beam from a point: the centre, or each of a post's faces' centres
+        (the design places its light by where they are)."""
         return dataclasses.replace(self, radius_mm=0.0, length_mm=0.0)
 
     def intensity(self, directions: np.ndarray) -> np.ndarray:
         """Relative radiant intensity towards unit ``directions`` (n, 3): (n,) float64
         whose mean over the whole sphere of directions is 1 (a disc: 4 cos from up,
-        0 below the horizon; the others: 1)."""
+        0 below the horizon; a post: the mean of its LEDs' 4 cos; the others: 1)."""
         directions = np.asarray(directions, np.float64)
-        if self.facing_up:
-            return 4.0 * np.maximum(directions[:, 2], 0.0)
+        if self.shape in FLAT:
+            normals = self.normals
+            return 4.0 / len(normals) * np.maximum(directions @ normals.T, 0.0).sum(axis=1)
         return np.ones(len(directions))
 
     def describe(self) -> str:
@@ -83,4 +109,6 @@ class Source:
             return f"{self.length_mm:g} mm filament"
         if self.shape == "disc":
             return f"flat LED {self.radius_mm:g} mm facing up"
+        if self.shape == "post":
+            return f"{len(self.facing_deg)} flat LEDs {self.radius_mm:g} mm facing out"
         return f"LED {self.radius_mm:g} mm"

@@ -40,7 +40,7 @@ def test_unknown_profile_name_lists_the_available_ones():
         profile.load_design("no_such_profile")
 
 
-@pytest.mark.parametrize("name", ["star3535", "mini1616", "die1mm", "filament26", "opal10"])
+@pytest.mark.parametrize("name", ["post3535", "post1616", "star3535", "mini1616", "die1mm", "filament26", "opal10"])
 def test_bundled_led_profiles_load_with_a_part_and_a_board(name):
     led = profile.load_led(name)
     assert led.name == name and led.part and led.board_diameter_mm > 0 and led.flux_lm > 0
@@ -55,9 +55,9 @@ def test_a_copied_led_profile_loads_from_its_path_as_the_readme_says(tmp_path):
     assert (led.name, led.radius_mm, led.path) == ("my_led", 1.0, str(mine))
 
 
-def test_the_default_led_is_a_package_on_its_board_facing_up():
+def test_the_default_led_is_one_package_per_wall_facing_it():
     led = profile.load_led(profile.DEFAULT_LED)
-    assert (led.shape, led.radius_mm, led.board_diameter_mm) == ("disc", 1.5, 20.0)
+    assert (led.shape, led.radius_mm, led.offset_mm, led.board_diameter_mm) == ("post", 1.5, 3.0, 10.0)
 
 
 @pytest.mark.parametrize("text, words", [
@@ -65,6 +65,7 @@ def test_the_default_led_is_a_package_on_its_board_facing_up():
     ("shape = 'cylinder'\n", ["length_mm", "filament"]),
     ("length_mm = 5.0\n", ["length_mm", "cylinder"]),
     ("shape = 'disc'\nlength_mm = 5.0\n", ["length_mm", "cylinder"]),
+    ("offset_mm = 3.0\n", ["offset_mm", "post"]),
     ("radius_mm = 30.0\n", ["radius_mm", "out of range", "0.0 to 20.0"]),
     ("colour = 'warm'\n", ["colour", "unknown key"]),
 ])

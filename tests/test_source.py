@@ -33,6 +33,26 @@ def test_a_flat_led_shines_up_from_its_face(mi):
     assert np.mean(trace.to_numpy(point_d)[:, 2]) == pytest.approx(2 / 3, abs=0.01)  # the point keeps the beam
 
 
+def test_a_posts_leds_each_shine_level_towards_their_wall(mi):
+    """One flat LED per wall, ``offset_mm`` out from the axis, facing its sector's centre."""
+    post = Source((0.0, 0.0, 45.0), "post", 1.5, facing_deg=(0.0, 90.0, 180.0), offset_mm=3.0)
+    d = _uniform_directions(400_000)
+    beam = post.intensity(d)
+    assert beam.mean() == pytest.approx(1.0, abs=0.01)
+    toward = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [np.sqrt(0.5), np.sqrt(0.5), 0.0]])
+    assert np.allclose(post.intensity(toward), [4 / 3, 0.0, 0.0, 4 / 3 * np.sqrt(2)])
+    o, d = (trace.to_numpy(a) for a in trace.emit(mi, post, 60_000, 5))
+    face = np.argmax((o - [0.0, 0.0, 45.0]) @ post.normals.T, axis=1)  # the LED it left
+    normal = post.normals[face]
+    assert np.bincount(face, minlength=3) / len(face) == pytest.approx([1 / 3] * 3, abs=0.02)
+    assert np.allclose(np.einsum("ij,ij->i", o - [0.0, 0.0, 45.0], normal), 3.0, atol=1e-4)  # on its face
+    assert np.linalg.norm(o - [0.0, 0.0, 45.0] - 3.0 * normal, axis=1).max() <= 1.5 + 1e-4
+    assert np.mean(np.einsum("ij,ij->i", d, normal)) == pytest.approx(2 / 3, abs=0.01)  # Lambertian
+    assert (np.einsum("ij,ij->i", d, normal) > 0).all()
+    o = trace.to_numpy(trace.emit(mi, post.point(), 1000, 5)[0])  # each LED's centre
+    assert np.allclose(np.unique(np.round(o, 4), axis=0), [[-3.0, 0.0, 45.0], [0.0, 3.0, 45.0], [3.0, 0.0, 45.0]])
+
+
 def test_the_transport_weighs_each_photon_by_the_beam(default_design, inner_layer):
     light = room.light_position(default_design)
     ball = raymap.stratified_photons(*inner_layer, Source(light), 1.5, 64, 32, seed=2)
@@ -49,8 +69,13 @@ def test_designs_name_their_light():
     # Written before designs named the shape: a length is a filament, else a ball.
     assert Source.from_json({"position": [0, 0, 45], "radius": 0.8, "length": 26.0}).shape == "cylinder"
     assert Source.from_json({"position": [0, 0, 45], "radius": 1.5}).describe() == "LED 1.5 mm"
+    post = {"position": [0, 0, 45], "shape": "post", "radius": 1.5, "facing_deg": [0, 90, 180], "offset_mm": 3.0}
+    assert Source.from_json(post) == Source((0, 0, 45), "post", 1.5, 0.0, (0.0, 90.0, 180.0), 3.0)
+    assert Source.from_json(post).describe() == "3 flat LEDs 1.5 mm facing out"
     with pytest.raises(ValueError, match="shape 'cube'"):
         Source((0, 0, 0), "cube")
+    with pytest.raises(ValueError, match="only a post"):
+        Source((0, 0, 0), "post")
 
 
 def test_the_source_method_refuses_a_flat_led(tmp_path):
@@ -64,17 +89,25 @@ def test_the_source_method_refuses_a_flat_led(tmp_path):
     flat.write_text("shape = 'disc'\nradius_mm = 1.5\n")
     build = pipeline.Build.open(tmp_path / "b", "default", "sla_resin", str(flat))
     opt = dataclasses.replace(build.design.optimize, method="ptracer", design_light="point")
-    with pytest.raises(LampfabError, match='method "ptracer" .* LED=flat shines up only'):
+    with pytest.raises(LampfabError, match='method "ptracer" .* LED=flat shines from flat faces'):
         build.optimizer(opt, None, [])
 
 
 def test_an_led_that_pokes_out_of_the_cavity_is_refused(tmp_path):
     """A 26 mm filament 15 mm up the lens would reach through the cavity's floor (10 mm)."""
-    from lampfab import pipeline
+    from lampfab import pipeline, profile
     from lampfab.errors import LampfabError
 
+    low = tmp_path / "low.toml"
+    low.write_text((profile.PROFILE_DIR / "default.toml").read_text().replace(
+        "light_height_mm = 45.0", "light_height_mm = 15.0"))
     with pytest.raises(LampfabError, match=r"glowing 26 mm filament \(0.8 mm radius\) reaches \[0.0, 0.0, 2.0\] mm, "
                                            r"outside the cavity; move \[lens\] light_height_mm"):
-        pipeline.Build.open(tmp_path, "default", "sla_resin", "filament26").inner()
-    pipeline.Build.open(tmp_path, "floor", "sla_resin", "filament26").inner()  # at mid-height it fits
-    pipeline.Build.open(tmp_path, "default", "sla_resin", "star3535").inner()
+        pipeline.Build.open(tmp_path, str(low), "sla_resin", "filament26").inner()
+    pipeline.Build.open(tmp_path, "default", "sla_resin", "filament26").inner()  # at mid-height it fits
+    pipeline.Build.open(tmp_path, str(low), "sla_resin", "star3535").inner()
+    pipeline.Build.open(tmp_path, "default", "sla_resin", "post3535").inner()
+    wide = tmp_path / "wide.toml"
+    wide.write_text("shape = 'post'\nradius_mm = 1.5\noffset_mm = 11.0\n")
+    with pytest.raises(LampfabError, match=r"glowing face \(1.5 mm radius\) reaches \[0.0, 12.5, 45.0\] mm"):
+        pipeline.Build.open(tmp_path, "default", "sla_resin", str(wide)).inner()

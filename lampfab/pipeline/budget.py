@@ -53,6 +53,13 @@ TEXT_BLUR_EM = 0.25
 FINER_DESIGN_BLUR_PX = 1.0
 FINER_DESIGN_PX = 128
 
+# A flat LED facing up lights the lens from below; above a quarter of the lens's height
+# its weakest light (near the horizon) is left for the pictures' lower parts: the apple
+# at 45 of 90 mm r 0.88-0.90, SSIM 0.26-0.29; at 15 mm (a sixth, the best measured) 0.96,
+# 0.38-0.40 (bench/log 12-06).
+FLAT_UP_MAX_HEIGHT = 0.25
+FLAT_UP_HEIGHT = 1 / 6
+
 
 def measure(build) -> dict:
     """The LED's blur on each wall of a coarse design of ``build``'s image (a
@@ -253,6 +260,23 @@ def _warnings(build, walls: dict, sharper: dict | None, unreadable: list, text_l
         out.append(f"the text may not read whole with this LED on the {', '.join(names)} wall{'s' * (len(names) > 1)}: "
                    f"its blur ({min(blurs):.0f}-{max(blurs):.0f} mm) is over {TEXT_BLUR_EM:g} of the letters' size "
                    f"({min(ems):.0f} mm){evidence}; use fewer words, or {led}")
+    return out + _mounting(build)
+
+
+def _mounting(build) -> list[str]:
+    """Warnings for a flat LED facing up where it serves the pictures badly."""
+    if not build.source.facing_up:
+        return []
+    out, lens = [], build.design.lens
+    if build.fab.process in ("cnc3", "cnc4"):
+        out.append(f"a milled lens cannot bend the light of a flat LED facing up (LED={build.led.name}) down onto "
+                   f"the walls: its slopes and tool radius leave a smear (the apple r 0.10-0.18); use an LED that "
+                   f"faces the walls (LED=post3535)")
+    elif lens.light_height_mm > FLAT_UP_MAX_HEIGHT * lens.height_mm:
+        out.append(f"a flat LED facing up (LED={build.led.name}) {lens.light_height_mm:g} mm up a {lens.height_mm:g} mm "
+                   f"lens leaves its weakest light for the pictures' lower parts (the apple at 45 of 90 mm: r 0.88, "
+                   f"at 15 mm 0.96): set [lens] light_height_mm to {FLAT_UP_HEIGHT * lens.height_mm:.0f} "
+                   f"in a copy of the profile, or use an LED that faces the walls (LED=post3535)")
     return out
 
 

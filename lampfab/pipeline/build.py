@@ -32,6 +32,7 @@ import numpy as np
 
 from .. import artifacts, profile, room, surface
 from ..errors import LampfabError
+from ..source import FLAT
 from .kind import Lamp, LensKind
 
 # The stages in the order make runs them.
@@ -95,7 +96,7 @@ class Build:
         """The LED at its place (``source.Source``)."""
         from ..source import Source
 
-        return Source.of_led(self.light, self.led)
+        return Source.of_led(self.light, self.led, [room.SECTOR_CENTRE_DEG[w] for w in self.design.room.walls])
 
     @property
     def walls(self) -> list[room.Wall]:
@@ -143,9 +144,9 @@ class Build:
         from ..splat import SplatOptimizer
 
         method = {"ptracer": optimize.PtracerOptimizer, "splat": SplatOptimizer}[opt.method]
-        if opt.method == "ptracer" and self.source.facing_up:
+        if opt.method == "ptracer" and self.source.shape in FLAT:
             raise LampfabError(f"{self.design.path}: [optimize] method \"ptracer\" lights the lens with Mitsuba's "
-                               f"point light, which shines every way; LED={self.led.name} shines up only: "
+                               f"point light, which shines every way; LED={self.led.name} shines from flat faces: "
                                f"use method \"splat\"")
         source = self.source if opt.design_light == "led" else self.source.point()
         return method(self.cylinder, *inner, source, self.fab.ior, self.walls, targets, opt, limits or self.limits)

@@ -163,9 +163,10 @@ class Lamp(LensKind):
 
     def light_json(self, build) -> dict:
         """The LED: its centre, its emitting shape and size, the part."""
-        led = build.led
+        led, source = build.led, build.source
         return {"position": build.light.tolist(), "shape": led.shape, "radius": led.radius_mm,
-                "length": led.length_mm, "part": led.part, "flux_lm": led.flux_lm}
+                "length": led.length_mm, "facing_deg": list(source.facing_deg), "offset_mm": source.offset_mm,
+                "part": led.part, "flux_lm": led.flux_lm}
 
     def finishing(self, build) -> dict:
         """The tolerance study and the post-processing guidance (``guidance``)."""

@@ -20,15 +20,40 @@ def _warnings(build, walls):
 
 
 @pytest.fixture
-def text_build(tmp_path):
-    """A build folder whose prepare report says every wall shows ``text``."""
+def low_profile(tmp_path):
+    """The default profile with the light 15 mm up the lens, where a flat LED facing up
+    serves the pictures best."""
+    from lampfab import profile
+
+    path = tmp_path / "low.toml"
+    path.write_text((profile.PROFILE_DIR / "default.toml").read_text().replace(
+        "light_height_mm = 45.0", "light_height_mm = 15.0"))
+    return str(path)
+
+
+@pytest.fixture
+def text_build(tmp_path, low_profile):
+    """A build folder whose prepare report says every wall shows ``text``, lit by a flat
+    LED facing up where it serves best."""
     def make(text: str, led: str = "star3535"):
         out = tmp_path / "b"
         out.mkdir(exist_ok=True)
         figures = {f"{w}_source": f"text: {text}" for w in ("front", "left", "right")}
         (out / "prepare.json").write_text(json.dumps({"figures": figures}))
-        return pipeline.Build.open(out, "default", "sla_resin", led)
+        return pipeline.Build.open(out, low_profile, "sla_resin", led)
     return make
+
+
+def test_plan_warns_of_a_flat_led_facing_up_where_it_serves_badly(tmp_path, low_profile):
+    def warnings(design, fab, led):
+        return budget._mounting(pipeline.Build.open(tmp_path, design, fab, led))
+
+    assert warnings(low_profile, "sla_resin", "star3535") == []
+    assert warnings("default", "sla_resin", "post3535") == warnings("default", "acrylic_cnc4", "post3535") == []
+    high = warnings("default", "sla_resin", "star3535")
+    assert len(high) == 1 and "45 mm up a 90 mm lens" in high[0] and "light_height_mm to 15" in high[0]
+    milled = warnings(low_profile, "acrylic_cnc3", "mini1616")
+    assert len(milled) == 1 and "milled lens" in milled[0] and "LED=post3535" in milled[0]
 
 
 def test_text_too_small_for_the_leds_blur_is_a_warning_naming_an_led_that_reads(text_build):
