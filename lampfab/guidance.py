@@ -59,6 +59,16 @@ _SHINES = {"disc": "it shines up from there as a package on its board does, brig
                    "the pictures slide sideways)"}
 
 
+def _fins(led: Led) -> str:
+    """The sentence on a post's fins, or nothing."""
+    if not led.fin_radius_mm:
+        return ""
+    return (f" Between the LEDs, on the post, stand matt black fins, {led.fin_radius_mm:g} mm out from the axis "
+            f"and {led.fin_height_mm:g} mm tall, centred on them, one at each sector's edge (45° from each LED): "
+            f"print them in black or cut them from black card; the design assumes they stop the light that would "
+            f"cross into a neighbour's part of the lens.")
+
+
 def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: dict) -> list[str]:
     """Plain-text paragraphs: orientation, the LED, finishing, the polishing allowance."""
     allowance = study["allowance_mm"] * 1000
@@ -69,7 +79,7 @@ def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: d
         orientation(wall_names),
         (f"The LED ({led.part}) goes up through the bore in the base ({2 * fab.mount_radius_mm:g} mm across) on "
          f"a stalk, {_MOUNTED[led.shape]} {light_mm[2]:g} mm above the base on the axis; the design assumes "
-         f"{_SHINES[led.shape]}, with the size of its profile ({led.name})."),
+         f"{_SHINES[led.shape]}, with the size of its profile ({led.name})." + _fins(led)),
         _FINISH[fab.process],
         (f"Polishing allowance: uneven removal of up to {bound}{allowance:.0f} um (peak, over patches of "
          f"~{study['correlation_mm']:g} mm) keeps every wall's Pearson r within {study['r_drop']} of the design. "

@@ -105,18 +105,24 @@ def load_inner(path: str | Path | None, scale: float, light_mm: np.ndarray,
 
 def check_led_inside(vertices: np.ndarray, faces: np.ndarray, source, where: str) -> None:
     """Refuse an LED whose glowing part pokes out of the cavity: a filament's ends, a
-    ball's poles and sides, a disc's rim, a post's faces' rims (``source``: a
-    ``source.Source``; ``vertices`` (n, 3) mm and ``faces`` as ``load_inner`` returns them)."""
+    ball's poles and sides, a disc's rim, a post's faces' rims and its fins' corners
+    (``source``: a ``source.Source``; ``vertices`` (n, 3) mm and ``faces`` as
+    ``load_inner`` returns them)."""
     r = source.radius_mm
     up = {"cylinder": source.length_mm / 2, "sphere": r, "post": r}.get(source.shape, 0.0)
     rims = np.array([[0, 0, up], [0, 0, -up], [r, 0, 0], [-r, 0, 0], [0, r, 0], [0, -r, 0]])
     centres = source.position + source.offset_mm * source.normals if source.shape == "post" else [source.position]
-    for point in (c + rim for c in centres for rim in rims):
+    part = {"sphere": "ball", "cylinder": f"{source.length_mm:g} mm filament"}.get(source.shape, "face")
+    parts = [(f"glowing {part} ({r:g} mm radius) reaches", c + rim) for c in centres for rim in rims]
+    if source.fins:
+        fins = f"fins ({source.fin_radius_mm:g} mm out, {source.fin_height_mm:g} mm tall) reach"
+        for a in np.radians(np.unique(source.fin_azimuths_deg() % 360.0)):
+            tip = source.position + source.fin_radius_mm * np.array([np.cos(a), np.sin(a), 0.0])
+            parts += [(fins, tip + [0.0, 0.0, dz * source.fin_height_mm]) for dz in (-0.5, 0.5)]
+    for what, point in parts:
         if abs(winding_number(vertices, faces, point) - 1.0) > 0.5:
-            part = {"sphere": "ball", "cylinder": f"{source.length_mm:g} mm filament"}.get(source.shape, "face")
-            raise LampfabError(f"{where}: the LED's glowing {part} ({source.radius_mm:g} mm radius) reaches "
-                               f"{np.round(point, 2).tolist()} mm, outside the cavity; move [lens] light_height_mm "
-                               f"or choose a smaller LED")
+            raise LampfabError(f"{where}: the LED's {what} {np.round(point, 2).tolist()} mm, outside the cavity; "
+                               f"move [lens] light_height_mm or choose a smaller LED")
 
 
 def winding_number(vertices: np.ndarray, faces: np.ndarray, point: np.ndarray) -> float:

@@ -58,17 +58,35 @@ def lights(mi, source: Source, radiance: float = 1.0) -> dict:
     open ends, as ``trace.emit``'s), or glowing discs (a disc facing up, a post's facing
     out: Mitsuba's area lights shine from the front only, as a Lambertian disc does; a
     point is a disc of ``POINT_DISC_RADIUS_MM``: Mitsuba has no point light with a cosine
-    beam).  Their surfaces are black: light coming back to them is absorbed."""
+    beam), with a post's fins.  Their surfaces are black: light coming back to them is
+    absorbed."""
     centre = source.position
     body = {"bsdf": {"type": "diffuse", "reflectance": 0.0},
             "emitter": {"type": "area", "radiance": {"type": "spectrum", "value": radiance}}}
     if source.shape in FLAT:
         r = max(source.radius_mm, POINT_DISC_RADIUS_MM)
         faces = centre + source.offset_mm * source.normals
-        return {f"light_{k}": {"type": "disk", "to_world": mi.ScalarTransform4f().look_at(
-                    face.tolist(), (face + n).tolist(), _across(n).tolist()).scale([r, r, 1.0]), **body}
-                for k, (face, n) in enumerate(zip(faces, source.normals))}
+        out = {f"light_{k}": {"type": "disk", "to_world": mi.ScalarTransform4f().look_at(
+                   face.tolist(), (face + n).tolist(), _across(n).tolist()).scale([r, r, 1.0]), **body}
+               for k, (face, n) in enumerate(zip(faces, source.normals))}
+        return out | _fins(mi, source) if source.fins else out
     return {"light": _light(mi, source, centre, body, radiance)}
+
+
+def _fins(mi, source: Source) -> dict:
+    """A post's fins as black rectangles, by scene key: vertical, from the axis out to
+    ``fin_radius_mm``, ``fin_height_mm`` tall about the LEDs."""
+    out = {}
+    for k, a in enumerate(np.radians(np.unique(source.fin_azimuths_deg() % 360.0))):
+        along = np.array([np.cos(a), np.sin(a), 0.0])
+        m = np.eye(4)
+        m[:3, 0] = along * source.fin_radius_mm / 2
+        m[:3, 1] = [0.0, 0.0, source.fin_height_mm / 2]
+        m[:3, 2] = np.cross(along, [0.0, 0.0, 1.0])
+        m[:3, 3] = source.position + along * source.fin_radius_mm / 2
+        out[f"fin_{k}"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(m),
+                           "bsdf": {"type": "diffuse", "reflectance": 0.0}}
+    return out
 
 
 def _across(normal: np.ndarray) -> np.ndarray:

@@ -190,6 +190,9 @@ class Led:
                                                    "a post's LEDs' each); 0: a point")
     length_mm: float = _spec(0.0, 0.0, 100.0, doc="emitting length of a filament (cylinder only)")
     offset_mm: float = _spec(0.0, 0.0, 20.0, doc="how far out from the axis a post's emitting faces are (post only)")
+    fin_radius_mm: float = _spec(0.0, 0.0, 50.0, doc="black fins between a post's LEDs reach this far from the axis "
+                                                     "(post only; 0: no fins)")
+    fin_height_mm: float = _spec(0.0, 0.0, 200.0, doc="the fins' height, centred on the LEDs (post only; 0: no fins)")
     board_diameter_mm: float = _spec(20.0, 1.0, 200.0, doc="the board or holder that must pass through the bore")
     flux_lm: float = _spec(100.0, 0.1, 100_000.0, doc="typical luminous flux (lumen) at its usual current")
     path: str = ""
@@ -308,8 +311,14 @@ def load_led(name_or_path: str) -> Led:
         raise LampfabError(f"{path}: length_mm {led.length_mm}: a filament (shape cylinder) needs a length above 0")
     if led.shape != "cylinder" and led.length_mm:
         raise LampfabError(f"{path}: length_mm applies only to shape = \"cylinder\" (a filament)")
-    if led.shape != "post" and led.offset_mm:
-        raise LampfabError(f"{path}: offset_mm applies only to shape = \"post\" (LEDs on a post's faces)")
+    for key in ("offset_mm", "fin_radius_mm", "fin_height_mm"):
+        if led.shape != "post" and getattr(led, key):
+            raise LampfabError(f"{path}: {key} applies only to shape = \"post\" (LEDs on a post's faces)")
+    if (led.fin_radius_mm > 0) != (led.fin_height_mm > 0):
+        raise LampfabError(f"{path}: fin_radius_mm and fin_height_mm go together: set both above 0, or neither")
+    if 0 < led.fin_radius_mm <= led.offset_mm + led.radius_mm:
+        raise LampfabError(f"{path}: fin_radius_mm {led.fin_radius_mm:g}: the fins must reach past the LEDs "
+                           f"(offset_mm + radius_mm = {led.offset_mm + led.radius_mm:g}); allowed: above that, to 50")
     return dataclasses.replace(led, name=led.name or path.stem, path=str(path))
 
 

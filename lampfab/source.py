@@ -11,7 +11,10 @@ Four shapes (``profile.LED_SHAPES``):
 - ``post``: one such flat LED per wall, on the faces of a small post standing on the
   axis, each ``offset_mm`` out from the axis and facing its wall's sector of the lens
   level (``facing_deg``, the sectors' centres): light goes out level, where the walls
-  are, as the ball's does, from parts a maker can buy.
+  are, as the ball's does, from parts a maker can buy.  Black fins between the LEDs
+  (``fin_radius_mm`` out from the axis, ``fin_height_mm`` tall, at the sectors' edges)
+  keep each LED's light to its own sector: a lens patch near a sector's edge then sees
+  one LED, not two a few millimetres apart (a double image).
 
 A point (``radius_mm`` 0) keeps its shape's beam: a ball's or a filament's shines
 evenly every way, a disc's as the cosine from straight up, a post's as its LEDs' cosines,
@@ -30,6 +33,7 @@ import numpy as np
 
 SHAPES = ("sphere", "cylinder", "disc", "post")
 FLAT = ("disc", "post")  # Lambertian faces: light only in front of each
+SECTOR_HALF_DEG = 45.0  # a wall's sector of the lens spans 90° (room.SECTOR_CENTRE_DEG)
 
 
 @dataclass(frozen=True)
@@ -38,19 +42,24 @@ class Source:
     ``shape`` one of ``SHAPES``; ``radius_mm`` the ball's, the filament's or the disc's
     (0: a point with the shape's beam); ``length_mm`` a filament's emitting length;
     ``facing_deg`` the azimuths (degrees from +x) a post's LEDs face, ``offset_mm`` how
-    far out from the axis their faces are."""
+    far out from the axis their faces are; ``fin_radius_mm`` and ``fin_height_mm`` its
+    fins' size (0: none)."""
     position_mm: tuple[float, float, float]
     shape: str = "sphere"
     radius_mm: float = 0.0
     length_mm: float = 0.0
     facing_deg: tuple[float, ...] = ()
     offset_mm: float = 0.0
+    fin_radius_mm: float = 0.0
+    fin_height_mm: float = 0.0
 
     def __post_init__(self):
         if self.shape not in SHAPES:
             raise ValueError(f"shape {self.shape!r}: one of {', '.join(SHAPES)}")
         if (self.shape == "post") != bool(self.facing_deg):
             raise ValueError("a post, and only a post, faces azimuths (facing_deg)")
+        if self.fins and self.shape != "post":
+            raise ValueError("only a post has fins")
         object.__setattr__(self, "position_mm", tuple(float(c) for c in self.position_mm))
         object.__setattr__(self, "facing_deg", tuple(float(a) for a in self.facing_deg))
 
@@ -59,7 +68,8 @@ class Source:
         """A ``profile.Led`` at ``position_mm`` (3,) mm; a post's LEDs face the azimuths
         ``facing_deg`` (degrees, the walls' sectors)."""
         facing = tuple(facing_deg) if led.shape == "post" else ()
-        return Source(tuple(position_mm), led.shape, led.radius_mm, led.length_mm, facing, led.offset_mm)
+        return Source(tuple(position_mm), led.shape, led.radius_mm, led.length_mm, facing, led.offset_mm,
+                      led.fin_radius_mm, led.fin_height_mm)
 
     @staticmethod
     def from_json(light: dict) -> "Source":
@@ -68,7 +78,7 @@ class Source:
         length = light.get("length", 0.0)
         shape = light.get("shape") or ("cylinder" if length > 0 else "sphere")
         return Source(tuple(light["position"]), shape, light["radius"], length, tuple(light.get("facing_deg", ())),
-                      light.get("offset_mm", 0.0))
+                      light.get("offset_mm", 0.0), light.get("fin_radius_mm", 0.0), light.get("fin_height_mm", 0.0))
 
     @property
     def position(self) -> np.ndarray:
@@ -79,6 +89,16 @@ class Source:
     def facing_up(self) -> bool:
         """True when no light leaves below the horizon."""
         return self.shape == "disc"
+
+    @property
+    def fins(self) -> bool:
+        """True when black fins keep each of a post's LEDs to its own sector."""
+        return self.fin_radius_mm > 0 and self.fin_height_mm > 0
+
+    def fin_azimuths_deg(self) -> np.ndarray:
+        """(k, 2) float64 degrees: the fins either side of each LED, ``SECTOR_HALF_DEG``
+        from the way it faces."""
+        return np.asarray(self.facing_deg)[:, None] + np.array([-SECTOR_HALF_DEG, SECTOR_HALF_DEG])
 
     @property
     def normals(self) -> np.ndarray:
@@ -96,11 +116,21 @@ class Source:
     def intensity(self, directions: np.ndarray) -> np.ndarray:
         """Relative radiant intensity towards unit ``directions`` (n, 3): (n,) float64
         whose mean over the whole sphere of directions is 1 (a disc: 4 cos from up,
-        0 below the horizon; a post: the mean of its LEDs' 4 cos; the others: 1)."""
+        0 below the horizon; a post: the mean of its LEDs' 4 cos; the others: 1).  A post's
+        fins leave each LED the azimuths up to its fins' tips, as seen from its face, and
+        take the rest: the mean is then under 1."""
         directions = np.asarray(directions, np.float64)
         if self.shape in FLAT:
             normals = self.normals
-            return 4.0 / len(normals) * np.maximum(directions @ normals.T, 0.0).sum(axis=1)
+            cosines = np.maximum(directions @ normals.T, 0.0)
+            if self.fins:
+                azimuth = np.degrees(np.arctan2(directions[:, 1], directions[:, 0]))
+                off = (azimuth[:, None] - np.asarray(self.facing_deg)[None, :] + 180.0) % 360.0 - 180.0
+                half = np.radians(SECTOR_HALF_DEG)
+                window = np.degrees(np.arctan2(self.fin_radius_mm * np.sin(half),
+                                               self.fin_radius_mm * np.cos(half) - self.offset_mm))
+                cosines = np.where(np.abs(off) <= window, cosines, 0.0)
+            return 4.0 / len(normals) * cosines.sum(axis=1)
         return np.ones(len(directions))
 
     def describe(self) -> str:
@@ -110,5 +140,5 @@ class Source:
         if self.shape == "disc":
             return f"flat LED {self.radius_mm:g} mm facing up"
         if self.shape == "post":
-            return f"{len(self.facing_deg)} flat LEDs {self.radius_mm:g} mm facing out"
+            return f"{len(self.facing_deg)} flat LEDs {self.radius_mm:g} mm facing out" + " between fins" * self.fins
         return f"LED {self.radius_mm:g} mm"

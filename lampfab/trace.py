@@ -23,6 +23,7 @@ from .room import Wall
 from .source import FLAT
 
 BATCH = 4_000_000  # photons per Mitsuba call: ~300 MB of state, fits any laptop
+NOWHERE_MM = 1e7  # far below the room, heading down: a photon sent from there meets nothing
 
 
 class MeshScene:
@@ -107,7 +108,8 @@ def emit(mi, source, n: int, seed: int):
 def _emit_flat(mi, source, n: int, seed: int):
     """``emit`` for flat Lambertian faces (a disc, a post's LEDs): each face takes an
     equal share of the photons, their directions stratified and cosine-weighted about
-    its normal, each from a random point of its disc."""
+    its normal, each from a random point of its disc; a post's fins stop those that
+    would cross into a neighbour's sector."""
     import drjit as dr
 
     normals = source.normals
@@ -123,7 +125,36 @@ def _emit_flat(mi, source, n: int, seed: int):
         rng = direction_rng(mi, count, seed)
         disc = mi.warp.square_to_uniform_disk_concentric(mi.Point2f(rng.next_float32(), rng.next_float32()))
         origin = origin + source.radius_mm * (disc.x * frame.s + disc.y * frame.t)
-    return origin, frame.to_world(local)
+    direction = frame.to_world(local)
+    if source.fins:
+        stopped = _stopped_by_fins(mi, source, origin, direction, face)
+        # A photon a fin stops still counts as emitted: it is sent where nothing is.
+        origin = dr.select(stopped, mi.Point3f(0.0, 0.0, -NOWHERE_MM), origin)
+        direction = dr.select(stopped, mi.Vector3f(0.0, 0.0, -1.0), direction)
+    return origin, direction
+
+
+def _stopped_by_fins(mi, source, origin, direction, face):
+    """Dr.Jit Bool: the photons leaving ``face`` (UInt32 per photon) of a finned post
+    from ``origin`` along ``direction`` that meet one of its two fins (vertical
+    half-planes from the axis, ``fin_radius_mm`` out and ``fin_height_mm`` tall, centred
+    on the LEDs' height)."""
+    import drjit as dr
+
+    centre = mi.Point3f(*source.position_mm)
+    p = origin - centre
+    stopped = dr.zeros(mi.Bool, dr.width(face))
+    for side in range(2):
+        azimuths = mi.Float(np.radians(source.fin_azimuths_deg()[:, side]).astype(np.float32))
+        a = dr.gather(mi.Float, azimuths, face)
+        along = mi.Vector3f(dr.cos(a), dr.sin(a), 0.0)
+        across = mi.Vector3f(-dr.sin(a), dr.cos(a), 0.0)
+        t = -dr.dot(p, across) / dr.dot(direction, across)
+        hit = p + t * direction
+        reach = dr.dot(hit, along)
+        stopped |= ((t > 0) & (reach > 0) & (reach <= source.fin_radius_mm)
+                    & (dr.abs(hit.z) <= 0.5 * source.fin_height_mm))
+    return stopped
 
 
 def stratified_square(mi, n: int, aspect: float, seed: int):

@@ -11,15 +11,15 @@ from pathlib import Path
 
 import numpy as np
 
-from lampfab import surface
+from lampfab import profile, surface
 from lampfab.inner import default_inner_mesh
 
 ROOT = Path(__file__).resolve().parent.parent
 
-# The LED of the tiny lamps whose pictures the tests judge: a ball that shines every way.
-# A tiny design (a few dozen nodes, two steps) cannot bend a flat LED's upward light far
-# enough to judge its pictures by the same bars (r 0.4-0.6 against 0.8).
-TINY_LED = "opal10"
+# The LED of the tiny lamps whose pictures the tests judge: the default, one package facing
+# each wall (tiny apple r 0.91-0.93).  A tiny design (a few dozen nodes, two steps) cannot
+# bend a flat LED's upward light far enough to judge its pictures by the same bars.
+TINY_LED = profile.DEFAULT_LED
 
 # The Makefile reads these with ?=: a developer's exported TEXT or ALLOW_FAIL would change
 # every build the tests make.

@@ -40,7 +40,7 @@ def test_unknown_profile_name_lists_the_available_ones():
         profile.load_design("no_such_profile")
 
 
-@pytest.mark.parametrize("name", ["post3535", "post1616", "star3535", "mini1616", "die1mm", "filament26", "opal10"])
+@pytest.mark.parametrize("name", ["post3535", "post3535_fins", "post1616", "star3535", "mini1616", "die1mm", "filament26", "opal10"])
 def test_bundled_led_profiles_load_with_a_part_and_a_board(name):
     led = profile.load_led(name)
     assert led.name == name and led.part and led.board_diameter_mm > 0 and led.flux_lm > 0
@@ -66,6 +66,8 @@ def test_the_default_led_is_one_package_per_wall_facing_it():
     ("length_mm = 5.0\n", ["length_mm", "cylinder"]),
     ("shape = 'disc'\nlength_mm = 5.0\n", ["length_mm", "cylinder"]),
     ("offset_mm = 3.0\n", ["offset_mm", "post"]),
+    ("shape = 'post'\nfin_radius_mm = 9.0\n", ["fin_radius_mm and fin_height_mm go together"]),
+    ("shape = 'post'\noffset_mm = 3.0\nfin_radius_mm = 4.0\nfin_height_mm = 9.0\n", ["fin_radius_mm 4", "past the LEDs"]),
     ("radius_mm = 30.0\n", ["radius_mm", "out of range", "0.0 to 20.0"]),
     ("colour = 'warm'\n", ["colour", "unknown key"]),
 ])

@@ -1,6 +1,8 @@
 """The LED's blur: kernels from moments, the blur they apply, and the optics plan's
 halving advice rests on (the blur grows with the emitter, shrinks with the lens)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter
@@ -101,7 +103,8 @@ def test_mitsubas_light_tracer_sees_the_walls_trace_sees(mi, small_lens):
              Wall("left", np.array([-1000.0, -900.0, 715.0]), np.array([0, 1800.0, 0]), np.array([0, 0, -1350.0]))]
     shapes = [(12, 16)] * 2
     post = Source(light, "post", 1.5, facing_deg=(90.0, 180.0), offset_mm=3.0)
-    for source in (Source(light), Source(light, "sphere", 1.5), Source(light, "disc", 1.5), post):
+    fins = dataclasses.replace(post, fin_radius_mm=11.0, fin_height_mm=50.0)
+    for source in (Source(light), Source(light, "sphere", 1.5), Source(light, "disc", 1.5), post, fins):
         mine, _ = trace.render_walls(trace.MeshScene(small_lens.vertices, small_lens.faces), source, 1.5,
                                      walls, shapes, 1_000_000, seed=4)
         theirs = mitsuba_reference.render(small_lens.vertices, small_lens.faces, 1.5, source, walls,

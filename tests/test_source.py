@@ -53,6 +53,28 @@ def test_a_posts_leds_each_shine_level_towards_their_wall(mi):
     assert np.allclose(np.unique(np.round(o, 4), axis=0), [[-3.0, 0.0, 45.0], [0.0, 3.0, 45.0], [3.0, 0.0, 45.0]])
 
 
+def test_a_posts_fins_keep_each_leds_light_to_its_sector(mi):
+    """Fins at the sectors' edges stop what would cross into a neighbour's sector; the
+    light they stop still counts as emitted (sent where nothing is)."""
+    fins = Source((0.0, 0.0, 45.0), "post", 1.5, facing_deg=(90.0, 180.0, 0.0), offset_mm=3.0,
+                  fin_radius_mm=11.0, fin_height_mm=50.0)
+    o, d = (trace.to_numpy(a) for a in trace.emit(mi, fins, 60_000, 7))
+    stopped = o[:, 2] < -1e6
+    assert np.all(d[stopped] == [0.0, 0.0, -1.0])
+    beam = fins.intensity(_uniform_directions(400_000)).mean()  # what the transport expects
+    assert stopped.mean() == pytest.approx(1.0 - beam, abs=0.03) and 0.1 < stopped.mean() < 0.2
+    p, v = o[~stopped] - [0.0, 0.0, 45.0], d[~stopped]
+    face = np.argmax(p @ fins.normals.T, axis=1)
+    a, b, c = (v[:, :2] ** 2).sum(1), 2 * (p[:, :2] * v[:, :2]).sum(1), (p[:, :2] ** 2).sum(1) - 11.0 ** 2
+    hit = p + ((-b + np.sqrt(b * b - 4 * a * c)) / (2 * a))[:, None] * v  # where each meets the fins' radius
+    off = (np.degrees(np.arctan2(hit[:, 1], hit[:, 0])) - np.asarray(fins.facing_deg)[face] + 180.0) % 360.0 - 180.0
+    under = np.abs(hit[:, 2]) <= 25.0
+    assert np.all(np.abs(off[under]) <= 45.0 + 1e-3)  # none crossed a fin
+    assert np.any(np.abs(off[~under]) > 45.0)  # over and under the fins, light still crosses
+    without = Source((0.0, 0.0, 45.0), "post", 1.5, facing_deg=(90.0, 180.0, 0.0), offset_mm=3.0)
+    assert (trace.to_numpy(trace.emit(mi, without, 60_000, 7)[0])[:, 2] > 0).all()
+
+
 def test_the_transport_weighs_each_photon_by_the_beam(default_design, inner_layer):
     light = room.light_position(default_design)
     ball = raymap.stratified_photons(*inner_layer, Source(light), 1.5, 64, 32, seed=2)
@@ -76,6 +98,8 @@ def test_designs_name_their_light():
         Source((0, 0, 0), "cube")
     with pytest.raises(ValueError, match="only a post"):
         Source((0, 0, 0), "post")
+    with pytest.raises(ValueError, match="only a post has fins"):
+        Source((0, 0, 0), "disc", fin_radius_mm=5.0, fin_height_mm=5.0)
 
 
 def test_the_source_method_refuses_a_flat_led(tmp_path):
@@ -107,6 +131,11 @@ def test_an_led_that_pokes_out_of_the_cavity_is_refused(tmp_path):
     pipeline.Build.open(tmp_path, "default", "sla_resin", "filament26").inner()  # at mid-height it fits
     pipeline.Build.open(tmp_path, str(low), "sla_resin", "star3535").inner()
     pipeline.Build.open(tmp_path, "default", "sla_resin", "post3535").inner()
+    pipeline.Build.open(tmp_path, "default", "sla_resin", "post3535_fins").inner()
+    tall = tmp_path / "tall.toml"
+    tall.write_text("shape = 'post'\nradius_mm = 1.5\noffset_mm = 3.0\nfin_radius_mm = 11.0\nfin_height_mm = 80.0\n")
+    with pytest.raises(LampfabError, match=r"fins \(11 mm out, 80 mm tall\) reach \[.*, 5.0\] mm, outside"):
+        pipeline.Build.open(tmp_path, "default", "sla_resin", str(tall)).inner()
     wide = tmp_path / "wide.toml"
     wide.write_text("shape = 'post'\nradius_mm = 1.5\noffset_mm = 11.0\n")
     with pytest.raises(LampfabError, match=r"glowing face \(1.5 mm radius\) reaches \[0.0, 12.5, 45.0\] mm"):

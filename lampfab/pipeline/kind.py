@@ -166,6 +166,7 @@ class Lamp(LensKind):
         led, source = build.led, build.source
         return {"position": build.light.tolist(), "shape": led.shape, "radius": led.radius_mm,
                 "length": led.length_mm, "facing_deg": list(source.facing_deg), "offset_mm": source.offset_mm,
+                "fin_radius_mm": source.fin_radius_mm, "fin_height_mm": source.fin_height_mm,
                 "part": led.part, "flux_lm": led.flux_lm}
 
     def finishing(self, build) -> dict:

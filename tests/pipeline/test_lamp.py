@@ -17,11 +17,11 @@ REPORTS = ["prepare", "plan", "init", "optimize", "solid", "checks", "export", "
 
 @pytest.fixture(scope="module")
 def lamp(tmp_path_factory, tiny_profile):
-    """``make lamp`` of the apple with the tiny profile and a ball LED (``TINY_LED``):
+    """``make lamp`` of the apple with the tiny profile and the default LED (``TINY_LED``):
     (its folder, the run, the BUILD folder, the seconds it took)."""
     build = tmp_path_factory.mktemp("build")
     t0 = time.monotonic()
-    run = make("lamp", f"BUILD={build}", "NAME=apple", f"PROFILE={tiny_profile}", f"LED={TINY_LED}")
+    run = make("lamp", f"BUILD={build}", "NAME=apple", f"PROFILE={tiny_profile}")
     seconds = time.monotonic() - t0
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     return build / "apple", run, build, seconds
@@ -233,14 +233,12 @@ def test_help_lists_the_stages():
 
 @pytest.mark.slow
 @pytest.mark.e2e
-def test_the_default_leds_face_their_walls_and_light_each_picture_top_to_bottom(tmp_path, tiny_profile):
+def test_the_default_leds_face_their_walls_and_light_each_picture_top_to_bottom(lamp):
     """The default LED is one flat package per wall on a post, each facing its wall: the
     design and verify trace three emitters, and each picture is lit top to bottom.  The
     tiny lamp put 0.96-0.98 of the light the apple's lower half should have there, r
     0.91-0.93; with a flat LED facing up in its place (star3535), 0.63-0.70 and r 0.65-0.69."""
-    run = make("lamp", f"BUILD={tmp_path}", "NAME=apple", f"PROFILE={tiny_profile}")
-    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    out = tmp_path / "apple"
+    out, run, _, _ = lamp
     light = json.loads((out / "design.json").read_text())["light"]
     assert (light["shape"], light["facing_deg"], light["offset_mm"]) == ("post", [90.0, 180.0, 0.0], 3.0)
     assert "with the 3 flat LEDs 1.5 mm facing out" in run.stdout
