@@ -140,5 +140,5 @@ class Source:
         if self.shape == "disc":
             return f"flat LED {self.radius_mm:g} mm facing up"
         if self.shape == "post":
-            return f"{len(self.facing_deg)} flat LEDs {self.radius_mm:g} mm facing out" + " between fins" * self.fins
+            return f"{len(self.facing_deg)} flat LEDs {self.radius_mm:g} mm " + ("between fins" if self.fins else "facing out")
         return f"LED {self.radius_mm:g} mm"

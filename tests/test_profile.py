@@ -40,7 +40,7 @@ def test_unknown_profile_name_lists_the_available_ones():
         profile.load_design("no_such_profile")
 
 
-@pytest.mark.parametrize("name", ["post3535", "post3535_fins", "post1616", "star3535", "mini1616", "die1mm", "filament26", "opal10"])
+@pytest.mark.parametrize("name", ["post3535", "post1616", "star3535", "mini1616", "die1mm", "filament26", "opal10"])
 def test_bundled_led_profiles_load_with_a_part_and_a_board(name):
     led = profile.load_led(name)
     assert led.name == name and led.part and led.board_diameter_mm > 0 and led.flux_lm > 0
@@ -57,7 +57,8 @@ def test_a_copied_led_profile_loads_from_its_path_as_the_readme_says(tmp_path):
 
 def test_the_default_led_is_one_package_per_wall_facing_it():
     led = profile.load_led(profile.DEFAULT_LED)
-    assert (led.shape, led.radius_mm, led.offset_mm, led.board_diameter_mm) == ("post", 1.5, 3.0, 10.0)
+    assert (led.shape, led.radius_mm, led.offset_mm, led.board_diameter_mm) == ("post", 1.5, 3.0, 22.0)
+    assert (led.fin_radius_mm, led.fin_height_mm) == (11.0, 50.0)
 
 
 @pytest.mark.parametrize("text, words", [
