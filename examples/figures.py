@@ -39,7 +39,8 @@ def figure(name: str, builds: Path = ROOT / "build") -> Path:
     walls = verify["walls"]
     light = verify["real_light"]
     targets = [build / "targets" / f"{wall}_preview.png" for wall in walls]
-    rows = [[tile(build / "verify" / f"{wall}_led.png", f"{wall}, {light}: r {f['led_pearson']:.2f}")
+    # r first: a long light's name is cut at the tile's edge, not the figure.
+    rows = [[tile(build / "verify" / f"{wall}_led.png", f"{wall}, r {f['led_pearson']:.2f}: {light}")
              for wall, f in walls.items()],
             [tile(build / "verify" / f"{wall}.png", f"{wall}, point: r {f['pearson']:.2f}")
              for wall, f in walls.items()]]

@@ -328,8 +328,8 @@ def check_led_for(design: Design, led: Led) -> None:
     sector bends the downward light onto it; the upward light is the other walls')."""
     if led.shape == "disc" and "floor" in design.room.walls:
         raise LampfabError(f"{led.path}: a flat LED facing up (shape disc) sends no light below the horizon, and "
-                           f"{design.path} has a floor picture ([room] walls): choose an LED that shines all round "
-                           f"(LED=opal10 or LED=filament26) or leave out the floor")
+                           f"{design.path} has a floor picture ([room] walls): choose LEDs that face the walls "
+                           f"(LED=post3535, one faces the floor's part of the lens) or leave out the floor")
 
 
 def with_bore_for(fab: Fabrication, led: Led) -> Fabrication:

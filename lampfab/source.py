@@ -18,8 +18,8 @@ Four shapes (``profile.LED_SHAPES``):
 
 A point (``radius_mm`` 0) keeps its shape's beam: a ball's or a filament's shines
 evenly every way, a disc's as the cosine from straight up, a post's as its LEDs' cosines,
-each from the centre of its face.  So a design's "point light"
-is always the same beam from one point: what a perfect lens would show with an
+each from the centre of its face.  So a design's "point light" is always the same beam
+from a point (a post's: one per face): what a perfect lens would show with an
 infinitely small emitter of that kind.  (A filament's own light is brightest side-on;
 its point keeps the ball's even beam, which its length's blur dwarfs.)
 """

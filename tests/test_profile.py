@@ -89,9 +89,9 @@ def test_a_flat_led_facing_up_cannot_light_the_floor(tmp_path):
     profile.check_led_for(profile.load_design("default"), led)  # walls only: fine
     with pytest.raises(LampfabError) as err:
         profile.check_led_for(profile.load_design("floor"), led)
-    for w in (str(flat), "floor", "below the horizon", "LED=filament26"):
+    for w in (str(flat), "floor", "below the horizon", "LED=post3535"):
         assert w in str(err.value)
-    profile.check_led_for(profile.load_design("floor"), profile.load_led("filament26"))
+    profile.check_led_for(profile.load_design("floor"), profile.load_led("post3535"))
 
 
 def test_the_leds_board_widens_the_bore_never_narrows_it():
