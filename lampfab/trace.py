@@ -77,11 +77,8 @@ def emit(mi, source, n: int, seed: int):
     and trace as fast as the point light's (random directions per point took the
     refinement's steps from 1.1 to 2 s).  A filament, brightest seen side-on, takes its
     points stratified over its surface (azimuth and height from the stratified
-    direction, whose z is uniform over [-1, 1]) and cosine-weighted directions.  A disc's
-    directions are stratified over the upper hemisphere, cosine-weighted, each from a
-    random point of the disc (every point of a flat Lambertian emitter sends the same
-    beam); a post's LEDs each send an equal share so.
-    Returns Dr.Jit (origins, unit directions) of about ``n`` photons.
+    direction, whose z is uniform over [-1, 1]) and cosine-weighted directions.  Flat
+    emitters: ``_emit_flat``.  Returns Dr.Jit (origins, unit directions) of about ``n`` photons.
     """
     import drjit as dr
 
@@ -108,8 +105,9 @@ def emit(mi, source, n: int, seed: int):
 def _emit_flat(mi, source, n: int, seed: int):
     """``emit`` for flat Lambertian faces (a disc, a post's LEDs): each face takes an
     equal share of the photons, their directions stratified and cosine-weighted about
-    its normal, each from a random point of its disc; a post's fins stop those that
-    would cross into a neighbour's sector."""
+    its normal, each from a random point of its disc (every point of a flat Lambertian
+    emitter sends the same beam); a post's fins stop those that would cross into a
+    neighbour's sector."""
     import drjit as dr
 
     normals = source.normals
@@ -141,12 +139,10 @@ def _stopped_by_fins(mi, source, origin, direction, face):
     on the LEDs' height)."""
     import drjit as dr
 
-    centre = mi.Point3f(*source.position_mm)
-    p = origin - centre
+    p = origin - mi.Point3f(*source.position_mm)
     stopped = dr.zeros(mi.Bool, dr.width(face))
     for side in range(2):
-        azimuths = mi.Float(np.radians(source.fin_azimuths_deg()[:, side]).astype(np.float32))
-        a = dr.gather(mi.Float, azimuths, face)
+        a = dr.gather(mi.Float, mi.Float(np.radians(source.fin_azimuths_deg()[:, side]).astype(np.float32)), face)
         along = mi.Vector3f(dr.cos(a), dr.sin(a), 0.0)
         across = mi.Vector3f(-dr.sin(a), dr.cos(a), 0.0)
         t = -dr.dot(p, across) / dr.dot(direction, across)
