@@ -42,7 +42,8 @@ def figures(loaded: verify.Loaded, photons: int, seed: int) -> dict[str, list[di
     """{LED: per wall {"wall", "r", "ssim", "share", "lower_half", "image"}} for the
     design's own LED and the other shape of the same radius."""
     own = Source.from_json(loaded.design["light"])
-    other = dataclasses.replace(own, shape=OTHER[own.shape], facing_deg=(), offset_mm=0.0)
+    other = dataclasses.replace(own, shape=OTHER[own.shape], facing_deg=(), offset_mm=0.0, fin_radius_mm=0.0,
+                                fin_height_mm=0.0)
     out = {}
     for name, source in ((f"{NAMES[own.shape]} (designed for)", own), (NAMES[other.shape], other)):
         images, _ = verify.render_design(loaded, 64, photons, seed, 8,

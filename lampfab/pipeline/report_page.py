@@ -255,7 +255,8 @@ def _sharpness_html(sharp: dict, figures: dict) -> str:
               "disc": "a flat emitter facing up the lamp's axis, as a package on its board shines: brightest "
                       "straight up, nothing below the horizon",
               "post": "flat emitters on a post on the lamp's axis, one facing each wall, as packages on their "
-                      "boards shine: brightest straight out, level",
+                      "boards shine: brightest straight out, level" + (", black fins between them keeping each to "
+                      "its wall's part of the lens" if sharp["led"].get("fin_radius_mm") else ""),
               "sphere": "a ball shining evenly in every direction (an LED in an opal ball; a bare LED on its "
                         "board would light only the top of each picture)"}[sharp["led"]["shape"]]
     return (f"<p>The LED ({html.escape(sharp['led']['part'])}) is not a point: every picture is drawn again from "

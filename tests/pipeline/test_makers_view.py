@@ -166,6 +166,7 @@ def test_text_lamp_end_to_end(text_lamp):
     # The report says what light the lens was designed for.
     page = (out / "report.html").read_text()
     assert "traces it as flat emitters on a post on the lamp's axis, one facing each wall" in page
+    assert "level, black fins between them keeping each to its wall's part of the lens" in page
     # plan read them too: sharp, and blurred by its coarse design's LED kernels.
     plan = json.loads((out / "plan.json").read_text())["figures"]["sharpness"]["walls"]
     assert all(f["words"] == 2 and 0 <= f["perfect_words_read"] <= 2 and 0 <= f["target_words_read"] <= 2
