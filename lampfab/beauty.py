@@ -43,12 +43,9 @@ def _rect(mi, origin: np.ndarray, right: np.ndarray, down: np.ndarray):
     """Mitsuba's rectangle ([-1, 1]^2, normal +z) onto the rectangle origin + s right + t down.
 
     Its texture rows then run up the rectangle, so a picture is passed flipped."""
-    m = np.eye(4)
-    m[:3, 0], m[:3, 1] = right / 2, -down / 2
-    n = np.cross(right, -down)
-    m[:3, 2] = n / np.linalg.norm(n)
-    m[:3, 3] = origin + (right + down) / 2
-    return mi.ScalarTransform4f(m)
+    from .mitsuba_reference import placed
+
+    return placed(mi, origin + (right + down) / 2, right / 2, -down / 2)
 
 
 def _ply(vertices: np.ndarray, faces: np.ndarray, folder: Path) -> str:

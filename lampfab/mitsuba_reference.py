@@ -65,10 +65,11 @@ def lights(mi, source: Source, radiance: float = 1.0) -> dict:
             "emitter": {"type": "area", "radiance": {"type": "spectrum", "value": radiance}}}
     if source.shape in FLAT:
         r = max(source.radius_mm, POINT_DISC_RADIUS_MM)
-        faces = centre + source.offset_mm * source.normals
-        out = {f"light_{k}": {"type": "disk", "to_world": mi.ScalarTransform4f().look_at(
-                   face.tolist(), (face + n).tolist(), _across(n).tolist()).scale([r, r, 1.0]), **body}
-               for k, (face, n) in enumerate(zip(faces, source.normals))}
+        out = {}
+        for k, n in enumerate(source.normals):
+            across = _across(n)
+            out[f"light_{k}"] = {"type": "disk", "to_world": placed(mi, centre + source.offset_mm * n, r * across,
+                                                                      r * np.cross(n, across)), **body}
         return out | _fins(mi, source) if source.fins else out
     return {"light": _light(mi, source, centre, body, radiance)}
 
@@ -78,15 +79,20 @@ def _fins(mi, source: Source) -> dict:
     ``fin_radius_mm``, ``fin_height_mm`` tall about the LEDs."""
     out = {}
     for k, a in enumerate(np.radians(np.unique(source.fin_azimuths_deg() % 360.0))):
-        along = np.array([np.cos(a), np.sin(a), 0.0])
-        m = np.eye(4)
-        m[:3, 0] = along * source.fin_radius_mm / 2
-        m[:3, 1] = [0.0, 0.0, source.fin_height_mm / 2]
-        m[:3, 2] = np.cross(along, [0.0, 0.0, 1.0])
-        m[:3, 3] = source.position + along * source.fin_radius_mm / 2
-        out[f"fin_{k}"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(m),
-                           "bsdf": {"type": "diffuse", "reflectance": 0.0}}
+        half = np.array([np.cos(a), np.sin(a), 0.0]) * source.fin_radius_mm / 2
+        out[f"fin_{k}"] = {"type": "rectangle", "bsdf": {"type": "diffuse", "reflectance": 0.0},
+                           "to_world": placed(mi, source.position + half, half, [0.0, 0.0, source.fin_height_mm / 2])}
     return out
+
+
+def placed(mi, centre, half_x, half_y):
+    """The to_world of Mitsuba's unit rectangle ([-1, 1]^2) or disk, normal +z, onto the
+    flat shape at ``centre`` (3,) mm spanning ``half_x`` and ``half_y`` (3,) mm (its half
+    width and half height, or its radii) from it, facing half_x x half_y."""
+    m = np.eye(4)
+    normal = np.cross(half_x, half_y)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = half_x, half_y, normal / np.linalg.norm(normal), centre
+    return mi.ScalarTransform4f(m)
 
 
 def _across(normal: np.ndarray) -> np.ndarray:
@@ -147,8 +153,5 @@ def render(vertices: np.ndarray, faces: np.ndarray, ior: float, source: Source, 
 
 
 def _rectangle(mi, wall: Wall):
-    """Mitsuba's rectangle ([-1, 1]^2, normal +z) onto the wall's picture, facing the lamp."""
-    m = np.eye(4)
-    m[:3, 0], m[:3, 1], m[:3, 2] = wall.right / 2, -wall.down / 2, wall.normal
-    m[:3, 3] = wall.centre
-    return mi.ScalarTransform4f(m)
+    """Mitsuba's rectangle onto the wall's picture, facing the lamp."""
+    return placed(mi, wall.centre, wall.right / 2, -wall.down / 2)
