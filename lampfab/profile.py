@@ -319,6 +319,10 @@ def load_led(name_or_path: str) -> Led:
     if 0 < led.fin_radius_mm <= led.offset_mm + led.radius_mm:
         raise LampfabError(f"{path}: fin_radius_mm {led.fin_radius_mm:g}: the fins must reach past the LEDs "
                            f"(offset_mm + radius_mm = {led.offset_mm + led.radius_mm:g}); allowed: above that, to 50")
+    if 2 * led.fin_radius_mm >= led.board_diameter_mm:
+        raise LampfabError(f"{path}: fin_radius_mm {led.fin_radius_mm:g}: the fins ({2 * led.fin_radius_mm:g} mm across) "
+                           f"must slide through the bore made for board_diameter_mm {led.board_diameter_mm:g}; "
+                           f"allowed: under {led.board_diameter_mm / 2:g}")
     return dataclasses.replace(led, name=led.name or path.stem, path=str(path))
 
 

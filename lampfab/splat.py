@@ -88,6 +88,7 @@ class SplatOptimizer(Optimizer):
         from 0.53 to 0.55, and the coherent rays trace faster (bench/RESULTS.md)."""
         import drjit as dr
 
+        from .fins import stopper
         from .trace import emit, into_glass
 
         count = photons_per_step(self.opt, level)
@@ -97,7 +98,7 @@ class SplatOptimizer(Optimizer):
         o, d = emit(mi, self.source, count, seed)
         self.n_photons = dr.width(d)
         self.o_glass, self.d_glass, self.w_glass = into_glass(mi, self.inner.scene, o, d, self.ior,
-                                                              CAVITY_REFLECTIONS_EVERY)
+                                                              CAVITY_REFLECTIONS_EVERY, stopper(mi, self.source))
         dr.eval(self.o_glass, self.d_glass, self.w_glass)
         self._photon_key = (seed, count)
 

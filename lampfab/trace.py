@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from . import tolerances
+from . import fins, tolerances
 from .mi_env import mitsuba
 from .room import Wall
 from .source import FLAT
@@ -125,32 +125,11 @@ def _emit_flat(mi, source, n: int, seed: int):
         origin = origin + source.radius_mm * (disc.x * frame.s + disc.y * frame.t)
     direction = frame.to_world(local)
     if source.fins:
-        stopped = _stopped_by_fins(mi, source, origin, direction, face)
+        stopped = fins.stops(mi, source, origin, direction)
         # A photon a fin stops still counts as emitted: it is sent where nothing is.
         origin = dr.select(stopped, mi.Point3f(0.0, 0.0, -NOWHERE_MM), origin)
         direction = dr.select(stopped, mi.Vector3f(0.0, 0.0, -1.0), direction)
     return origin, direction
-
-
-def _stopped_by_fins(mi, source, origin, direction, face):
-    """Dr.Jit Bool: the photons leaving ``face`` (UInt32 per photon) of a finned post
-    from ``origin`` along ``direction`` that meet one of its two fins (vertical
-    half-planes from the axis, ``fin_radius_mm`` out and ``fin_height_mm`` tall, centred
-    on the LEDs' height)."""
-    import drjit as dr
-
-    p = origin - mi.Point3f(*source.position_mm)
-    stopped = dr.zeros(mi.Bool, dr.width(face))
-    for side in range(2):
-        a = dr.gather(mi.Float, mi.Float(np.radians(source.fin_azimuths_deg()[:, side]).astype(np.float32)), face)
-        along = mi.Vector3f(dr.cos(a), dr.sin(a), 0.0)
-        across = mi.Vector3f(-dr.sin(a), dr.cos(a), 0.0)
-        t = -dr.dot(p, across) / dr.dot(direction, across)
-        hit = p + t * direction
-        reach = dr.dot(hit, along)
-        stopped |= ((t > 0) & (reach > 0) & (reach <= source.fin_radius_mm)
-                    & (dr.abs(hit.z) <= 0.5 * source.fin_height_mm))
-    return stopped
 
 
 def stratified_square(mi, n: int, aspect: float, seed: int):
@@ -223,7 +202,7 @@ def refract_or_reflect(mi, d, n, ior, xi):
     return dr.select(xi < fresnel, reflected, refracted)
 
 
-def into_glass(mi, cavity, o, d, ior: float, reflected_every: int):
+def into_glass(mi, cavity, o, d, ior: float, reflected_every: int, stops=None):
     """Photons from inside the cavity into the glass around it, with their flux.
 
     ``cavity`` is the inner layer as a Mitsuba scene with its normals into the cavity.
@@ -238,6 +217,7 @@ def into_glass(mi, cavity, o, d, ior: float, reflected_every: int):
     wall, in the 12 rows around the light's height).  Weights, not a random choice
     between the two: a choice adds binomial noise to every pixel (the refinement wrote
     it into the clock's flat grey: SSIM 0.81 -> 0.77 on its front wall, 0.82 weighted).
+    ``stops`` (see ``propagate``) zeroes the weight of reflections it stops on their way.
 
     Returns Dr.Jit (points just inside the glass, unit directions, weights): first the
     refracted photons in order, then the reflected ones.
@@ -254,10 +234,13 @@ def into_glass(mi, cavity, o, d, ior: float, reflected_every: int):
     across = cavity.ray_intersect(mi.Ray3f(start + tolerances.RAY_EPSILON_MM * back, back),
                                   mi.RayFlags.Minimal, False)
     far_reflectance, _, far_refracted = interface(back, across.n, ior)
-    dr.eval(across.p, far_reflectance, far_refracted)
+    far_transmitted = 1.0 - far_reflectance
+    if stops is not None:
+        far_transmitted = dr.select(stops(start, back, across.t), 0.0, far_transmitted)
+    dr.eval(across.p, far_transmitted, far_refracted)
     p = _concat(mi.Point3f, si.p, across.p)
     d_glass = _concat(mi.Vector3f, refracted, far_refracted)
-    weight = dr.concat([1.0 - reflectance, dr.gather(mi.Float, reflectance, some) * (1.0 - far_reflectance)
+    weight = dr.concat([1.0 - reflectance, dr.gather(mi.Float, reflectance, some) * far_transmitted
                         * float(reflected_every)])
     return p + tolerances.RAY_EPSILON_MM * d_glass, d_glass, weight
 
@@ -269,7 +252,7 @@ def _concat(cls, a, b):
     return cls(*(dr.concat([x, y]) for x, y in ((a.x, b.x), (a.y, b.y), (a.z, b.z))))
 
 
-def propagate(mi, scene, o, d, ior, seed: int, max_bounces: int, on_escape, place=None) -> int:
+def propagate(mi, scene, o, d, ior, seed: int, max_bounces: int, on_escape, place=None, stops=None) -> int:
     """Follow photons through the lens until they leave it.
 
     One wavefront per interface, compacted so finished photons cost nothing.
@@ -280,8 +263,10 @@ def propagate(mi, scene, o, d, ior, seed: int, max_bounces: int, on_escape, plac
     ``on_escape(o, d, reflected)`` receives each wavefront's escaping photons (Dr.Jit
     arrays), ``reflected`` a Dr.Jit UInt32: 0 if the photon was never reflected, else
     where it was first reflected (a Fresnel ghost): ``place(points, outward normals)``
-    -> Dr.Jit UInt32 codes from 1, or 1 without ``place``.  Returns how many are still
-    inside after ``max_bounces`` interfaces.
+    -> Dr.Jit UInt32 codes from 1, or 1 without ``place``.  ``stops(o, d, t_max)`` ->
+    Dr.Jit Bool: the photons something opaque stops before their next interface
+    (``fins.stopper``); they end there.  Returns how many are still inside after
+    ``max_bounces`` interfaces.
     """
     import drjit as dr
 
@@ -292,12 +277,13 @@ def propagate(mi, scene, o, d, ior, seed: int, max_bounces: int, on_escape, plac
             return 0
         si = scene.ray_intersect(mi.Ray3f(o, d), mi.RayFlags.Minimal, False)
         valid = si.is_valid()
+        ended = dr.zeros(mi.Bool, n) if stops is None else stops(o, d, si.t)
         # One kernel for the intersection; gathers below would otherwise re-run it.
-        dr.eval(valid, si.p, si.n, o, d)
-        gone = dr.compress(~valid)
+        dr.eval(valid, ended, si.p, si.n, o, d)
+        gone = dr.compress(~valid & ~ended)
         if dr.width(gone):
             on_escape(_take(mi.Point3f, o, gone), _take(mi.Vector3f, d, gone), dr.gather(mi.UInt32, reflected, gone))
-        live = dr.compress(valid)
+        live = dr.compress(valid & ~ended)
         if dr.width(live) == 0:  # every photon left (a flat panel's light can all be out by now)
             return 0
         # Opaque seeds: a literal would be baked into the kernel and force a recompile.
@@ -433,7 +419,8 @@ def render_walls(scene: MeshScene, source, ior, walls: list[Wall], shapes: list[
 
         traced += dr.width(d)
         traced_by_parity[batch % 2] += dr.width(d)
-        trapped += propagate(mi, scene.scene, o, d, ior, batch_seed, max_bounces, land, reflection_place)
+        trapped += propagate(mi, scene.scene, o, d, ior, batch_seed, max_bounces, land, reflection_place,
+                             fins.stopper(mi, source))
 
     def per_wall(c):
         return [img.reshape(s) for img, s in zip(np.split(c / traced, np.cumsum(sizes)[:-1]), shapes)]

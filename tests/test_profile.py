@@ -58,7 +58,8 @@ def test_a_copied_led_profile_loads_from_its_path_as_the_readme_says(tmp_path):
 def test_the_default_led_is_one_package_per_wall_facing_it():
     led = profile.load_led(profile.DEFAULT_LED)
     assert (led.shape, led.radius_mm, led.offset_mm, led.board_diameter_mm) == ("post", 1.5, 3.0, 22.0)
-    assert (led.fin_radius_mm, led.fin_height_mm) == (11.0, 50.0)
+    assert (led.fin_radius_mm, led.fin_height_mm) == (10.5, 50.0)
+    assert 2 * led.fin_radius_mm < led.board_diameter_mm  # the fins slide through the bore
 
 
 @pytest.mark.parametrize("text, words", [
@@ -69,6 +70,8 @@ def test_the_default_led_is_one_package_per_wall_facing_it():
     ("offset_mm = 3.0\n", ["offset_mm", "post"]),
     ("shape = 'post'\nfin_radius_mm = 9.0\n", ["fin_radius_mm and fin_height_mm go together"]),
     ("shape = 'post'\noffset_mm = 3.0\nfin_radius_mm = 4.0\nfin_height_mm = 9.0\n", ["fin_radius_mm 4", "past the LEDs"]),
+    ("shape = 'post'\nfin_radius_mm = 11.0\nfin_height_mm = 9.0\nboard_diameter_mm = 22.0\n",
+     ["fin_radius_mm 11", "22 mm across", "slide through the bore", "under 11"]),
     ("radius_mm = 30.0\n", ["radius_mm", "out of range", "0.0 to 20.0"]),
     ("colour = 'warm'\n", ["colour", "unknown key"]),
 ])
