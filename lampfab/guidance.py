@@ -64,9 +64,11 @@ def _fins(led: Led) -> str:
     if not led.fin_radius_mm:
         return ""
     return (f" Between the LEDs, on the post, stand matt black fins, {led.fin_radius_mm:g} mm out from the axis "
-            f"and {led.fin_height_mm:g} mm tall, centred on them, one at each sector's edge (45° from each LED): "
-            f"print them in black or cut them from black card; the design assumes they stop the light that would "
-            f"cross into a neighbour's part of the lens.")
+            f"and {led.fin_height_mm:g} mm tall, centred on them, one at each of the rod's corners (45° from each "
+            f"LED): print fins.stl in black (matt, or paint it matt black) and slide it over the "
+            f"{led.rod_width_mm:g} mm rod, its fins on the corners, before you glue the LEDs on; the design assumes "
+            f"they stop the light that would cross into a neighbour's part of the lens, from the LEDs or reflected "
+            f"back across the hollow.")
 
 
 def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: dict) -> list[str]:

@@ -193,6 +193,8 @@ class Led:
     fin_radius_mm: float = _spec(0.0, 0.0, 50.0, doc="black fins between a post's LEDs reach this far from the axis "
                                                      "(post only; 0: no fins)")
     fin_height_mm: float = _spec(0.0, 0.0, 200.0, doc="the fins' height, centred on the LEDs (post only; 0: no fins)")
+    rod_width_mm: float = _spec(0.0, 0.0, 20.0, doc="the square rod a post's LED boards sit on, and the fins' part "
+                                                    "slides over (post with fins only)")
     board_diameter_mm: float = _spec(20.0, 1.0, 200.0, doc="the board or holder that must pass through the bore")
     flux_lm: float = _spec(100.0, 0.1, 100_000.0, doc="typical luminous flux (lumen) at its usual current")
     path: str = ""
@@ -311,7 +313,7 @@ def load_led(name_or_path: str) -> Led:
         raise LampfabError(f"{path}: length_mm {led.length_mm}: a filament (shape cylinder) needs a length above 0")
     if led.shape != "cylinder" and led.length_mm:
         raise LampfabError(f"{path}: length_mm applies only to shape = \"cylinder\" (a filament)")
-    for key in ("offset_mm", "fin_radius_mm", "fin_height_mm"):
+    for key in ("offset_mm", "fin_radius_mm", "fin_height_mm", "rod_width_mm"):
         if led.shape != "post" and getattr(led, key):
             raise LampfabError(f"{path}: {key} applies only to shape = \"post\" (LEDs on a post's faces)")
     if (led.fin_radius_mm > 0) != (led.fin_height_mm > 0):
@@ -323,6 +325,10 @@ def load_led(name_or_path: str) -> Led:
         raise LampfabError(f"{path}: fin_radius_mm {led.fin_radius_mm:g}: the fins ({2 * led.fin_radius_mm:g} mm across) "
                            f"must slide through the bore made for board_diameter_mm {led.board_diameter_mm:g}; "
                            f"allowed: under {led.board_diameter_mm / 2:g}")
+    if led.fin_radius_mm and not 0 < led.rod_width_mm / 2 < led.offset_mm:
+        raise LampfabError(f"{path}: rod_width_mm {led.rod_width_mm:g}: a post with fins needs the square rod its "
+                           f"boards sit on and its fins slide over; allowed: above 0, under 2 x offset_mm "
+                           f"({2 * led.offset_mm:g})")
     return dataclasses.replace(led, name=led.name or path.stem, path=str(path))
 
 

@@ -72,6 +72,9 @@ def test_the_default_led_is_one_package_per_wall_facing_it():
     ("shape = 'post'\noffset_mm = 3.0\nfin_radius_mm = 4.0\nfin_height_mm = 9.0\n", ["fin_radius_mm 4", "past the LEDs"]),
     ("shape = 'post'\nfin_radius_mm = 11.0\nfin_height_mm = 9.0\nboard_diameter_mm = 22.0\n",
      ["fin_radius_mm 11", "22 mm across", "slide through the bore", "under 11"]),
+    ("shape = 'post'\noffset_mm = 3.0\nfin_radius_mm = 10.0\nfin_height_mm = 9.0\nboard_diameter_mm = 22.0\n",
+     ["rod_width_mm 0", "square rod", "under 2 x offset_mm (6)"]),
+    ("rod_width_mm = 4.0\n", ["rod_width_mm", "post"]),
     ("radius_mm = 30.0\n", ["radius_mm", "out of range", "0.0 to 20.0"]),
     ("colour = 'warm'\n", ["colour", "unknown key"]),
 ])

@@ -133,7 +133,7 @@ def test_an_led_that_pokes_out_of_the_cavity_is_refused(tmp_path):
     pipeline.Build.open(tmp_path, "default", "sla_resin", "post3535").inner()
     tall = tmp_path / "tall.toml"
     tall.write_text("shape = 'post'\nradius_mm = 1.5\noffset_mm = 3.0\nfin_radius_mm = 10.5\nfin_height_mm = 80.0\n"
-                    "board_diameter_mm = 22.0\n")
+                    "board_diameter_mm = 22.0\nrod_width_mm = 4.0\n")
     with pytest.raises(LampfabError, match=r"fins \(10.5 mm out, 80 mm tall\) reach \[.*, 5.0\] mm, outside"):
         pipeline.Build.open(tmp_path, "default", "sla_resin", str(tall)).inner()
     wide = tmp_path / "wide.toml"

@@ -18,7 +18,8 @@ The folder ``out`` (every file is written atomically, ``artifacts``):
     solid.npz                     solid: the solid's vertices and faces
     checks.png                    fabcheck
     lens.stl, lens.step,          export
-    lens.glb, design.json
+    lens.glb, design.json,
+    fins.stl                      (a post's fins, to print in black)
     verify/, report/, report.html verify
 """
 
@@ -170,6 +171,7 @@ class Build:
     lens_stl = _artifact("lens.stl")
     lens_step = _artifact("lens.step")
     lens_glb = _artifact("lens.glb")
+    fins_stl = _artifact("fins.stl")
     design_file = _artifact("design.json")
     verify_dir = _artifact("verify")
     report_html = _artifact("report.html")

@@ -217,6 +217,8 @@ def _groups(build: Build, figures: dict, plan: dict) -> dict:
         e = export["figures"]
         geometry += [("lens.stl", f"{e['stl_bytes'] / 1e6:.1f} MB"), ("lens.step", f"{e['step_bytes'] / 1e6:.1f} MB"),
                      ("STEP's B-spline from the heightmap", f"within {e['bspline_deviation_mm'] * 1000:.2g} µm")]
+        if "fins_stl_bytes" in e:
+            geometry.append(("fins.stl (print in black)", f"{e['fins_stl_bytes'] / 1e3:.0f} kB"))
     fab += [("Material", f"{build.fab.material} (n = {build.fab.ior})"),
             ("Bore through the base", f"{2 * build.fab.mount_radius_mm:g} mm across")]
     init = (build.stage_report("init") or {}).get("figures", {})

@@ -50,7 +50,8 @@ def _key_figure(stage: str, figs: dict) -> str:
         return f"FAILED: {', '.join(names)}" if names else "all checks pass"
     if stage == "export":
         return (f"lens.stl {figs['stl_bytes'] / 1e6:.1f} MB, lens.step {figs['step_bytes'] / 1e6:.1f} MB, "
-                f"B-spline within {figs['bspline_deviation_mm'] * 1000:.2g} µm")
+                f"B-spline within {figs['bspline_deviation_mm'] * 1000:.2g} µm"
+                + (", fins.stl" if "fins_stl_bytes" in figs else ""))
     return ", ".join(f"{n} r {f['led_pearson']:.2f} SSIM {f['led_ssim']:.2f}"
                      + (f" {f['led_words_read']}/{f['words']} words read" if "words" in f else "")
                      for n, f in figs["walls"].items()) + f" with the {figs['real_light']}"

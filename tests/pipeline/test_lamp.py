@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from lampfab import solid
+from lampfab.export import stl
 from tests.helpers import ROOT, TINY_LED, cli, make
 
 REPORTS = ["prepare", "plan", "init", "optimize", "solid", "checks", "export", "verify"]
@@ -243,6 +245,11 @@ def test_the_default_leds_face_their_walls_and_light_each_picture_top_to_bottom(
     assert (light["shape"], light["facing_deg"], light["offset_mm"]) == ("post", [90.0, 180.0, 0.0], 3.0)
     assert (light["fin_radius_mm"], light["fin_height_mm"]) == (10.5, 50.0)
     assert "with the 3 flat LEDs 1.5 mm between fins" in run.stdout
+    # The fins' part to print, read back: one closed solid that passes the bore.
+    vertices, faces = stl.read_stl(out / "fins.stl")
+    assert solid.edge_check(faces)["components"] == 1
+    assert np.hypot(vertices[:, 0], vertices[:, 1]).max() < 11.0
+    assert "fins.stl" in run.stdout
     walls = json.loads((out / "verify.json").read_text())["figures"]["walls"]
     for name, wall in walls.items():
         led = np.load(out / "verify" / f"{name}.npz")["led"]

@@ -1,7 +1,9 @@
-"""Stage 7, export: lens.stl, lens.step and lens.glb, each read back and checked, and
-design.json."""
+"""Stage 7, export: lens.stl, lens.step and lens.glb, each read back and checked,
+design.json, and for a post with fins the fins' part, fins.stl."""
 
 from __future__ import annotations
+
+import numpy as np
 
 from ... import artifacts
 from ...errors import LampfabError
@@ -10,7 +12,8 @@ from ..progress import log
 
 
 def export(build: Build) -> dict:
-    """lens.stl and lens.step, both read back and checked, lens.glb and design.json."""
+    """lens.stl and lens.step, both read back and checked, lens.glb, design.json and
+    fins.stl (``_fins``)."""
     from ... import solid
     from ...export import gltf, step_file, stl
     from ...tolerances import VOLUME_REL
@@ -46,7 +49,28 @@ def export(build: Build) -> dict:
                   step_stl_volume_rel=rel, step_faces=back["faces"],
                   bspline_deviation_mm=step_info["deviation_mm"],
                   bspline_poles=[step_info["poles_u"], step_info["poles_v"]], admesh=slicer)
+    if build.source.fins:
+        report.figure(fins_stl_bytes=_fins(build))
     log(f"export: lens.stl {stl_bytes / 1e6:.1f} MB, lens.step {step_info['file_bytes'] / 1e6:.1f} MB, "
         f"B-spline deviation {step_info['deviation_mm'] * 1000:.3g} µm, volumes agree to {rel:.2e}")
     report.write(build.report_file("export"))
     return report.data
+
+
+def _fins(build: Build) -> int:
+    """Write a post's fins' part (``led_post.fin_part``) as fins.stl, read it back and
+    check it is one closed solid that passes the bore; returns the file's size."""
+    from ... import led_post, solid
+    from ...export import stl
+
+    source = build.source
+    size = stl.write_stl(build.fins_stl, *led_post.fin_part(build.led, float(build.light[2]),
+                                                            source.fin_azimuths_deg()))
+    v, f = stl.read_stl(build.fins_stl)
+    edges = solid.edge_check(f)
+    reach = float(np.hypot(v[:, 0], v[:, 1]).max())
+    if not (edges["watertight"] and edges["winding_consistent"] and edges["components"] == 1) \
+            or reach >= build.fab.mount_radius_mm:
+        raise LampfabError(f"{build.fins_stl}: read back it is not one closed solid that passes the "
+                           f"{2 * build.fab.mount_radius_mm:g} mm bore ({edges}, {2 * reach:.2f} mm across)")
+    return size
