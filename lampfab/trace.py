@@ -367,8 +367,8 @@ def render_walls(scene: MeshScene, source, ior, walls: list[Wall], shapes: list[
                  kernel_moments=None) -> tuple[list[np.ndarray], dict]:
     """Trace about ``photons`` photons from the LED through the lens onto the walls.
 
-    The LED ``source`` (a ``source.Source``) is traced as ``emit`` says; ``ior`` is
-    ``propagate``'s; ``emitter(mi, n, seed)`` -> Dr.Jit (origins, unit directions) of
+    The LED ``source`` (a ``source.Source``) is traced as ``emit`` says, a post's fins
+    stopping photons wherever they cross them (``fins``); ``ior`` is ``propagate``'s; ``emitter(mi, n, seed)`` -> Dr.Jit (origins, unit directions) of
     about ``n`` photons replaces it with another light, e.g. a panel's collimated beam
     (``source`` is then unused).  ``kernel_moments`` (a ``sharpness.Moments``) receives where each
     photon that was never reflected left the lens and landed.
