@@ -40,6 +40,7 @@ def fin_part(led, light_height_mm: float, fin_azimuths_deg) -> tuple[np.ndarray,
     (m, 3) int64 faces): one closed solid."""
     import manifold3d
 
+    from .errors import GeometryError
     from .solid import _arrays, _check
 
     half = 0.5 * led.rod_width_mm
@@ -61,6 +62,7 @@ def fin_part(led, light_height_mm: float, fin_azimuths_deg) -> tuple[np.ndarray,
         board = manifold3d.Manifold.cube((led.offset_mm + BOARD_ROOM_MM, 2 * room, 2 * room))
         part = _check(part - board.translate((0.0, -room, light_height_mm - room)).rotate((0.0, 0.0, float(a))),
                       "the LED boards' room")
-    if len(part.decompose()) != 1:
-        raise ValueError("the fins' part is not one body")
+    bodies = len(part.decompose())
+    if bodies != 1:
+        raise GeometryError(f"manifold3d: the fins' part came out as {bodies} bodies, not one")
     return _arrays(part)

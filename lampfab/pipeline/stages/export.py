@@ -51,6 +51,8 @@ def export(build: Build) -> dict:
                   bspline_poles=[step_info["poles_u"], step_info["poles_v"]], admesh=slicer)
     if build.source.fins:
         report.figure(fins_stl_bytes=_fins(build))
+    else:  # a fins.stl left by an earlier build with another LED
+        build.fins_stl.unlink(missing_ok=True)
     log(f"export: lens.stl {stl_bytes / 1e6:.1f} MB, lens.step {step_info['file_bytes'] / 1e6:.1f} MB, "
         f"B-spline deviation {step_info['deviation_mm'] * 1000:.3g} µm, volumes agree to {rel:.2e}")
     report.write(build.report_file("export"))
