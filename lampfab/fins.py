@@ -24,7 +24,7 @@ def stops(mi, source, o, d, t_max=None):
     if not source.fins:
         return stopped
     p = o - mi.Point3f(*source.position_mm)
-    for a in np.radians(np.unique(source.fin_azimuths_deg() % 360.0)):
+    for a in np.radians(source.fin_azimuths_deg()):
         along = mi.Vector3f(float(np.cos(a)), float(np.sin(a)), 0.0)
         across = mi.Vector3f(float(-np.sin(a)), float(np.cos(a)), 0.0)
         # A ray parallel to the fin gives an infinite t, which no test below accepts.

@@ -116,7 +116,7 @@ def check_led_inside(vertices: np.ndarray, faces: np.ndarray, source, where: str
     parts = [(f"glowing {part} ({r:g} mm radius) reaches", c + rim) for c in centres for rim in rims]
     if source.fins:
         fins = f"fins ({source.fin_radius_mm:g} mm out, {source.fin_height_mm:g} mm tall) reach"
-        for a in np.radians(np.unique(source.fin_azimuths_deg() % 360.0)):
+        for a in np.radians(source.fin_azimuths_deg()):
             tip = source.position + source.fin_radius_mm * np.array([np.cos(a), np.sin(a), 0.0])
             parts += [(fins, tip + [0.0, 0.0, dz * source.fin_height_mm]) for dz in (-0.5, 0.5)]
     for what, point in parts:

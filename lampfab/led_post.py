@@ -36,8 +36,8 @@ BOARD_ROOM_MM = 0.5
 def fin_part(led, light_height_mm: float, fin_azimuths_deg) -> tuple[np.ndarray, np.ndarray]:
     """The fins' part for ``led`` (a ``profile.Led`` of shape "post" with fins and a
     rod) whose LEDs' centres are ``light_height_mm`` above the base and whose fins stand
-    at ``fin_azimuths_deg`` (degrees from +x).  Returns ((n, 3) float64 mm vertices,
-    (m, 3) int64 faces): one closed solid."""
+    at ``fin_azimuths_deg`` (degrees from +x, each once: ``Source.fin_azimuths_deg``).
+    Returns ((n, 3) float64 mm vertices, (m, 3) int64 faces): one closed solid."""
     import manifold3d
 
     from .errors import GeometryError
@@ -52,13 +52,13 @@ def fin_part(led, light_height_mm: float, fin_azimuths_deg) -> tuple[np.ndarray,
     part = _check(collar.translate((0.0, 0.0, bottom)) + collar.translate((0.0, 0.0, top - COLLAR_HEIGHT_MM)),
                   "the fins' collars")
     length = led.fin_radius_mm - hole
-    for a in np.unique(np.asarray(fin_azimuths_deg, np.float64) % 360.0):
+    for a in np.asarray(fin_azimuths_deg, np.float64):
         plate = manifold3d.Manifold.cube((length, FIN_THICKNESS_MM, led.fin_height_mm))
         plate = plate.translate((hole, -0.5 * FIN_THICKNESS_MM, bottom)).rotate((0.0, 0.0, float(a)))
         part = _check(part + plate, "a fin")
     # Each LED board (as wide as the rod's face) and its package's edge keep the fins clear.
     room = half + CLEARANCE_MM
-    for a in np.unique(np.asarray(fin_azimuths_deg, np.float64) % 360.0) + 45.0:
+    for a in np.asarray(fin_azimuths_deg, np.float64) + 45.0:
         board = manifold3d.Manifold.cube((led.offset_mm + BOARD_ROOM_MM, 2 * room, 2 * room))
         part = _check(part - board.translate((0.0, -room, light_height_mm - room)).rotate((0.0, 0.0, float(a))),
                       "the LED boards' room")

@@ -78,7 +78,7 @@ def _fins(mi, source: Source) -> dict:
     """A post's fins as black rectangles, by scene key: vertical, from the axis out to
     ``fin_radius_mm``, ``fin_height_mm`` tall about the LEDs."""
     out = {}
-    for k, a in enumerate(np.radians(np.unique(source.fin_azimuths_deg() % 360.0))):
+    for k, a in enumerate(np.radians(source.fin_azimuths_deg())):
         half = np.array([np.cos(a), np.sin(a), 0.0]) * source.fin_radius_mm / 2
         out[f"fin_{k}"] = {"type": "rectangle", "bsdf": {"type": "diffuse", "reflectance": 0.0},
                            "to_world": placed(mi, source.position + half, half, [0.0, 0.0, source.fin_height_mm / 2])}

@@ -96,9 +96,10 @@ class Source:
         return self.fin_radius_mm > 0 and self.fin_height_mm > 0
 
     def fin_azimuths_deg(self) -> np.ndarray:
-        """(k, 2) float64 degrees: the fins either side of each LED, ``SECTOR_HALF_DEG``
-        from the way it faces."""
-        return np.asarray(self.facing_deg)[:, None] + np.array([-SECTOR_HALF_DEG, SECTOR_HALF_DEG])
+        """(f,) float64 degrees in [0, 360), ascending: each fin once, the fins standing
+        either side of each LED, ``SECTOR_HALF_DEG`` from the way it faces."""
+        both = np.asarray(self.facing_deg)[:, None] + np.array([-SECTOR_HALF_DEG, SECTOR_HALF_DEG])
+        return np.unique(both % 360.0)
 
     @property
     def normals(self) -> np.ndarray:

@@ -277,13 +277,16 @@ def propagate(mi, scene, o, d, ior, seed: int, max_bounces: int, on_escape, plac
             return 0
         si = scene.ray_intersect(mi.Ray3f(o, d), mi.RayFlags.Minimal, False)
         valid = si.is_valid()
-        ended = dr.zeros(mi.Bool, n) if stops is None else stops(o, d, si.t)
+        left, inside = ~valid, valid
+        if stops is not None:
+            ended = stops(o, d, si.t)
+            left, inside = left & ~ended, inside & ~ended
         # One kernel for the intersection; gathers below would otherwise re-run it.
-        dr.eval(valid, ended, si.p, si.n, o, d)
-        gone = dr.compress(~valid & ~ended)
+        dr.eval(left, inside, si.p, si.n, o, d)
+        gone = dr.compress(left)
         if dr.width(gone):
             on_escape(_take(mi.Point3f, o, gone), _take(mi.Vector3f, d, gone), dr.gather(mi.UInt32, reflected, gone))
-        live = dr.compress(valid & ~ended)
+        live = dr.compress(inside)
         if dr.width(live) == 0:  # every photon left (a flat panel's light can all be out by now)
             return 0
         # Opaque seeds: a literal would be baked into the kernel and force a recompile.

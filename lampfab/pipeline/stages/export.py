@@ -25,7 +25,7 @@ def export(build: Build) -> dict:
     stl_volume = solid.mesh_volume(rv, rf)
     glb_bytes = gltf.write_glb(build.lens_glb, rv, rf, fab.ior)
     edges = solid.edge_check(rf)
-    if not (edges["watertight"] and edges["winding_consistent"] and edges["components"] == 1):
+    if not _one_closed_solid(edges):
         raise LampfabError(f"{build.lens_stl}: read back it is not one closed, consistently wound "
                            f"solid ({edges})")
     slicer = stl.admesh_check(build.lens_stl)         # None where admesh is not installed
@@ -71,8 +71,12 @@ def _fins(build: Build) -> int:
     v, f = stl.read_stl(build.fins_stl)
     edges = solid.edge_check(f)
     reach = float(np.hypot(v[:, 0], v[:, 1]).max())
-    if not (edges["watertight"] and edges["winding_consistent"] and edges["components"] == 1) \
-            or reach >= build.fab.mount_radius_mm:
+    if not _one_closed_solid(edges) or reach >= build.fab.mount_radius_mm:
         raise LampfabError(f"{build.fins_stl}: read back it is not one closed solid that passes the "
                            f"{2 * build.fab.mount_radius_mm:g} mm bore ({edges}, {2 * reach:.2f} mm across)")
     return size
+
+
+def _one_closed_solid(edges: dict) -> bool:
+    """Whether ``solid.edge_check``'s figures describe one closed, consistently wound solid."""
+    return edges["watertight"] and edges["winding_consistent"] and edges["components"] == 1
