@@ -5,8 +5,9 @@ Both return what ``image.load_target`` + ``image.letterbox`` return for a pictur
 
 * Text is set in the bundled DejaVu Sans Bold (``data/DejaVuSans-Bold.ttf``, Bitstream
   Vera licence beside it), white on black, centred, on the number of lines that
-  makes the letters largest on the wall, each line break placed where the widest line
-  is narrowest.
+  makes the letters largest on the wall, or nearly as large on a much narrower
+  picture (``LAYOUT_EM_TOLERANCE``), each line break placed where the widest line is
+  narrowest.
 * A panorama is a 360° cylindrical (or equirectangular) image: its width spans all
   azimuths, its centre column is the front wall, the left wall is a quarter to the
   left, the right wall a quarter to the right.  Each wall pixel takes the panorama
@@ -30,6 +31,17 @@ FONT = Path(__file__).resolve().parent / "data" / "DejaVuSans-Bold.ttf"
 TEXT_MARGIN = 0.08   # blank border, as a share of the wall image on each side
 _SUPERSAMPLE = 4     # glyphs drawn 4x larger and box-averaged: anti-aliased edges
 _MAX_TEXT = 200      # characters; more would be unreadable on a wall at any size
+# Of the layouts whose letters are at most LAYOUT_EM_TOLERANCE smaller than the largest,
+# the one whose widest line is narrowest, when it is narrower than the largest letters'
+# by LAYOUT_NARROWER_SHARE of the picture's width at least.  The LED's blur grows toward
+# a picture's sides (a third wider in its outer eighths than in its middle, measured),
+# so a line reaching them smears its outer letters: "Dream big little star" on three
+# lines (the middle one edge to edge) read 7 of 12 words over three walls, on four
+# lines with letters 2 % smaller 12 of 12.  A line narrower by less still reaches the
+# sides: "Happy birthday my love" on four lines instead of three (its widest line 2 %
+# narrower) read the same 10 of 12 (bench/log/2026-12-06.md).
+LAYOUT_EM_TOLERANCE = 0.05
+LAYOUT_NARROWER_SHARE = 0.125
 
 
 def text_image(text: str, rows: int, cols: int) -> np.ndarray:
@@ -78,8 +90,11 @@ def _drawn(layout: str, em_px: float, rows: int, cols: int):
 def text_layout(text: str, rows: int, cols: int) -> tuple[float, str]:
     """How ``text_image`` sets ``text`` in (rows, cols): (the font's size, its em, in
     pixels; the lines joined by newlines).  The user's own line breaks are kept;
-    otherwise the words go on as many lines as make the letters largest, each line break
-    placed so that the widest line is as narrow as it can be."""
+    otherwise the words go on as many lines as make the letters largest, or on those of
+    the layouts within ``LAYOUT_EM_TOLERANCE`` of that which make the picture narrowest
+    (of equally narrow, the largest letters) when it is ``LAYOUT_NARROWER_SHARE`` of the
+    width narrower; each line break placed so that the widest line is as narrow as it
+    can be."""
     from PIL import Image, ImageDraw, ImageFont
 
     words_by_line = [ln.split() for ln in str(text).splitlines()]
@@ -96,14 +111,20 @@ def text_layout(text: str, rows: int, cols: int) -> tuple[float, str]:
                            f"Latin, Greek or Cyrillic letters, or make a picture of them and use TARGET=")
     box_w, box_h = cols * (1 - 2 * TEXT_MARGIN), rows * (1 - 2 * TEXT_MARGIN)
     draw = ImageDraw.Draw(Image.new("L", (1, 1)))
-    best = None
+    candidates = []  # (scale, width on the wall in px, layout), fewer lines first
     for lines in _layouts(words_by_line, font):
         layout = "\n".join(lines)
         left, top, right, bottom = draw.multiline_textbbox((0, 0), layout, font=font, align="center")
         scale = min(box_w / (right - left), box_h / (bottom - top))
-        if best is None or scale > best[0]:  # of equals, the fewer lines
-            best = (scale, layout)
-    return probe * best[0], best[1]
+        candidates.append((scale, scale * (right - left), layout))
+    largest = max(candidates, key=lambda c: c[0])  # of equals, the fewer lines
+    near = [c for c in candidates if c[0] >= (1 - LAYOUT_EM_TOLERANCE) * largest[0]]
+    # A width within a hundredth of a pixel of the narrowest is as narrow (layouts that
+    # fill the box's width meet it to rounding).
+    narrowest = min(width for _, width, _ in near) + 0.01
+    narrow = max((c for c in near if c[1] <= narrowest), key=lambda c: c[0])
+    scale, _, layout = narrow if largest[1] - narrow[1] >= LAYOUT_NARROWER_SHARE * cols else largest
+    return probe * scale, layout
 
 
 def _missing_glyphs(text: str, font) -> list[str]:

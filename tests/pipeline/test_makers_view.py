@@ -52,10 +52,14 @@ def test_text_keeps_given_lines_and_refuses_nothing_or_too_much():
 
 @pytest.mark.parametrize("phrase", ["Sleep well my darling", "Make today a good day", "Keep calm and carry on",
                                     "Dream big little star", "Hi"])
-def test_text_takes_the_line_breaks_that_make_the_largest_letters(phrase):
-    """Of every way of breaking the words into lines, the layout's letters are the
-    largest (by brute force over the cuts); breaking lines by their count of characters
-    set "Sleep well my darling" one word a line with letters a sixth smaller."""
+def test_text_takes_the_line_breaks_that_make_large_letters_and_a_narrow_picture(phrase):
+    """Of every way of breaking the words into lines (by brute force over the cuts), the
+    layout's letters are the largest, or within ``LAYOUT_EM_TOLERANCE`` of them on the
+    narrowest picture when that is an eighth of the width narrower; breaking lines by
+    their count of characters set "Sleep well my darling" one word a line with letters a
+    sixth smaller.  "Dream big little star" goes on four lines, not on three with its
+    middle line edge to edge; "Keep calm and carry on" stays on three, four lines would
+    be narrower by less than an eighth."""
     import itertools
 
     rows, cols = 48, 64
@@ -67,11 +71,28 @@ def test_text_takes_the_line_breaks_that_make_the_largest_letters(phrase):
         for cuts in itertools.combinations(range(1, len(words)), k):
             bounds = (0, *cuts, len(words))
             lines = "\n".join(" ".join(words[a:b]) for a, b in zip(bounds, bounds[1:]))
-            every.append(targets.text_layout(lines, rows, cols)[0])
-    assert em == pytest.approx(max(every))
+            every.append((targets.text_layout(lines, rows, cols)[0], _ink_width(targets.text_image(lines, rows, cols))))
+    largest_em, largest_width = max(every, key=lambda c: (c[0], -c[1]))
+    narrowest = min(w for e, w in every if e >= (1 - targets.LAYOUT_EM_TOLERANCE) * largest_em)
+    width = _ink_width(targets.text_image(phrase, rows, cols))
+    gain = largest_width - narrowest  # in whole pixels: a pixel either way at the threshold
+    if gain >= targets.LAYOUT_NARROWER_SHARE * cols + 1:
+        assert width <= narrowest + 1 and em >= (1 - targets.LAYOUT_EM_TOLERANCE) * largest_em
+    elif gain <= targets.LAYOUT_NARROWER_SHARE * cols - 1:
+        assert em == pytest.approx(largest_em)
     if phrase == "Sleep well my darling":
         assert layout == "Sleep\nwell my\ndarling" and em > 1.15 * targets.text_layout("Sleep\nwell\nmy\ndarling",
                                                                                           rows, cols)[0]
+    if phrase == "Dream big little star":
+        assert layout == "Dream\nbig\nlittle\nstar"
+        assert width < 0.8 * _ink_width(targets.text_image("Dream\nbig little\nstar", rows, cols))
+    if phrase == "Keep calm and carry on":
+        assert layout == "Keep\ncalm and\ncarry on"
+
+
+def _ink_width(image) -> int:
+    _, _, first, last = _lit_box(image)
+    return int(last - first + 1)
 
 
 def test_a_line_break_typed_into_make_s_text_breaks_the_line(tmp_path, tiny_profile):
@@ -92,7 +113,7 @@ def test_text_lines_hold_each_line_and_only_its_neighbours_margin():
     rows, cols = 48, 64
     img = targets.text_image("Dream big little star", rows, cols)
     bands = targets.text_lines("Dream big little star", rows, cols)
-    assert len(bands) == targets.text_layout("Dream big little star", rows, cols)[1].count("\n") + 1 == 3
+    assert len(bands) == targets.text_layout("Dream big little star", rows, cols)[1].count("\n") + 1 == 4
     assert bands[0][0] == 0 and bands[-1][1] == rows
     lit = np.flatnonzero(img.any(axis=1))
     covered = set().union(*(range(a, b) for a, b in bands))
