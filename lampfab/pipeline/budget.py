@@ -48,6 +48,13 @@ DETAIL_SSIM = 0.85
 # of their 48 words, so plan warns a little before 0.3.
 TEXT_BLUR_EM = 0.25
 
+# The outer share of a picture's width, on each side, where the LED's blur has grown:
+# the sides lie farther from the lamp and are met obliquely, and on "Dream big little
+# star"'s lens the blur there was a third wider than in the middle (78-82 x 108-109 mm
+# against 62-64 x 80-84 mm).  A line of text reaching them smears its first and last
+# letters (bench/log/2026-12-06.md).
+SIDE_SHARE = 0.125
+
 # plan recommends the 128 px profile (hires) when the LED's blur is under this many pixels
 # of a coarser design: a finer design would then show detail the LED does not blur away.
 FINER_DESIGN_BLUR_PX = 1.0
@@ -109,7 +116,8 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
             # limit, not the LED's.
             walls[wall.name].update(words=len(ocr.words(texts[wall.name])),
                                     target_words_read=ocr.words_read(target, texts[wall.name]),
-                                    perfect_words_read=ocr.words_read(blurred, texts[wall.name]))
+                                    perfect_words_read=ocr.words_read(blurred, texts[wall.name]),
+                                    text_sides=_text_sides(texts[wall.name], target, field))
             text_fields[wall.name] = (wall, target, field, texts[wall.name])
         worst.append(max(median.values()))
     figures = {"design_px": px, "led": profile.as_dict(build.led), "walls": walls,
@@ -192,6 +200,29 @@ def _unreadable(build, walls: dict) -> list[tuple[str, float, float]]:
     return out
 
 
+def _text_sides(text: str, target: np.ndarray, field_mm2: np.ndarray) -> dict | None:
+    """The lines of ``text``, set on ``target`` ((rows, cols)), whose letters reach the
+    picture's outer ``SIDE_SHARE`` on either side, with the LED's blur on their letters
+    there and on the rest of the text (``field_mm2``: ``Kernels.field``'s (rows, cols, 3)):
+    {"lines": [...], "side_blur_mm", "middle_blur_mm": the median over those letters'
+    pixels of the kernel's diameter along its larger axis}; None when no line reaches them."""
+    from .. import targets
+
+    rows, cols = target.shape
+    edge = max(1, int(round(SIDE_SHARE * cols)))
+    side = np.zeros(cols, bool)
+    side[:edge] = side[cols - edge:] = True
+    ink = target > 0.5
+    lines = [line for line in targets.text_layout(text, rows, cols)[1].split("\n") if line.strip()]
+    reaching = [line for line, (first, end) in zip(lines, targets.text_lines(text, rows, cols))
+                if (ink[first:end] & side).any()]
+    if not reaching or not (ink & ~side).any():
+        return None
+    diameter = sharpness.DIAMETER_SIGMAS * np.sqrt(np.maximum(field_mm2[..., 0], field_mm2[..., 1]))
+    return {"lines": reaching, "side_blur_mm": float(np.median(diameter[ink & side])),
+            "middle_blur_mm": float(np.median(diameter[ink & ~side]))}
+
+
 def _text_led(build, walls: dict, unreadable: list, text_fields: dict) -> dict | None:
     """The bundled LED of the build's shape to name for the ``unreadable`` walls' text: of those
     whose blur stays under ``TEXT_BLUR_EM`` there, the largest with which a perfect lens
@@ -259,8 +290,23 @@ def _warnings(build, walls: dict, sharper: dict | None, unreadable: list, text_l
             evidence = ""
         out.append(f"the text may not read whole with this LED on the {', '.join(names)} wall{'s' * (len(names) > 1)}: "
                    f"its blur ({min(blurs):.0f}-{max(blurs):.0f} mm) is over {TEXT_BLUR_EM:g} of the letters' size "
-                   f"({min(ems):.0f} mm){evidence}; use fewer words, or {led}")
+                   f"({min(ems):.0f} mm){_at_the_sides(walls, names)}{evidence}; use fewer words, or {led}")
     return out + _mounting(build)
+
+
+def _at_the_sides(walls: dict, names) -> str:
+    """The clause of the text warning on lines that reach the pictures' sides of the
+    walls ``names``, where the blur is wider than on the rest of the text ("" if none)."""
+    sides = [walls[n]["text_sides"] for n in names if walls[n].get("text_sides")]
+    sides = [s for s in sides if s["side_blur_mm"] > s["middle_blur_mm"]]
+    if not sides:
+        return ""
+    lines = list(dict.fromkeys(line for s in sides for line in s["lines"]))
+    quoted = " and ".join('"' + line + '"' for line in lines)
+    which = f"the line {quoted} reaches" if len(lines) == 1 else f"the lines {quoted} reach"
+    blur = [s["side_blur_mm"] for s in sides]
+    return (f", and {min(blur):.0f}-{max(blur):.0f} mm where {which} the walls' sides (the first and last letters "
+            f"smear first; a line break keeps a line off the sides)")
 
 
 def _mounting(build) -> list[str]:

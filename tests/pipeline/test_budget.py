@@ -118,9 +118,10 @@ def test_a_filaments_blur_up_the_wall_halves_with_its_length(text_build):
     assert "a filament half as long (13 mm: 360 mm up the wall)" in line
 
 
-def _uniform_kernels(build, h_mm: float, v_mm: float):
+def _uniform_kernels(build, h_mm: float, v_mm: float, sides: float = 1.0):
     """The LED's kernel the same (``h_mm`` x ``v_mm`` across x up, 4 sigma) everywhere on
-    every wall: a grid of cells over each wall's picture."""
+    every wall, or ``sides`` times as wide in the pictures' outer eighths: a grid of cells
+    over each wall's picture, eight across."""
     import numpy as np
 
     from lampfab import sharpness
@@ -133,7 +134,34 @@ def _uniform_kernels(build, h_mm: float, v_mm: float):
         walls.append(np.full(xs.size, k))
     centre = np.concatenate(centres)
     cov = np.tile([(h_mm / 4) ** 2, (v_mm / 4) ** 2, 0.0], (len(centre), 1))
+    width = build.walls[0].width_mm
+    cov[(centre[:, 0] < width / 8) | (centre[:, 0] > 7 * width / 8)] *= sides**2
     return sharpness.Kernels(np.concatenate(walls), centre, cov, np.ones(len(centre)))
+
+
+def test_plan_names_the_line_that_reaches_the_sides_where_the_blur_is_wider(text_build):
+    """A line set edge to edge reaches the pictures' outer eighths, where the LED blurs
+    more: the text warning names it with the blur there; with the blur even, or the words
+    set clear of the sides, it says nothing of them."""
+    from lampfab import targets
+
+    by_hand = "Dream\nbig little\nstar"  # the middle line edge to edge
+    build = text_build(by_hand)
+    build.save_targets({w.name: targets.text_image(by_hand, 48, 64) for w in build.walls})
+    wider = budget.summarize(build, _uniform_kernels(build, 68.0, 97.0, sides=1.4))
+    for wall in wider["walls"].values():
+        assert wall["text_sides"]["lines"] == ["big little"]
+        assert wall["text_sides"]["side_blur_mm"] > 1.2 * wall["text_sides"]["middle_blur_mm"]
+    assert any("mm where the line \"big little\" reaches the walls' sides" in w for w in wider["warnings"])
+    even = budget.summarize(build, _uniform_kernels(build, 68.0, 97.0))
+    assert any("may not read" in w for w in even["warnings"])
+    assert not any("walls' sides" in w for w in even["warnings"])
+
+    build = text_build("Dream big little star")  # four lines, clear of the sides
+    build.save_targets({w.name: targets.text_image("Dream big little star", 48, 64) for w in build.walls})
+    clear = budget.summarize(build, _uniform_kernels(build, 68.0, 97.0, sides=1.4))
+    assert all(w["text_sides"] is None for w in clear["walls"].values())
+    assert not any("walls' sides" in w for w in clear["warnings"])
 
 
 @pytest.mark.parametrize("phrase, blur_mm, read_whole, warns", [
