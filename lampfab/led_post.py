@@ -20,6 +20,8 @@ import math
 
 import numpy as np
 
+from .errors import GeometryError
+
 # Chosen: 1 mm of black PLA, PETG or resin passes no light to speak of, and is two
 # perimeters of a 0.4 mm nozzle.
 FIN_THICKNESS_MM = 1.0
@@ -40,7 +42,6 @@ def fin_part(led, light_height_mm: float, fin_azimuths_deg) -> tuple[np.ndarray,
     Returns ((n, 3) float64 mm vertices, (m, 3) int64 faces): one closed solid."""
     import manifold3d
 
-    from .errors import GeometryError
     from .solid import _arrays, _check
 
     half = 0.5 * led.rod_width_mm

@@ -79,7 +79,7 @@ def words_read(image: np.ndarray, phrase: str) -> int:
     from .targets import text_lines
 
     pages = [(image, 6)] + [(np.pad(image[first:end], ((LINE_MARGIN_PX, LINE_MARGIN_PX), (0, 0))), 7)
-                            for first, end in text_lines(phrase, *image.shape)]
+                            for first, end, _ in text_lines(phrase, *image.shape)]
     found = Counter()
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
         for read_words in pool.map(lambda page: read(*page), pages):

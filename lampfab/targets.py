@@ -55,21 +55,22 @@ def text_image(text: str, rows: int, cols: int) -> np.ndarray:
     return np.asarray(_drawn(layout, em_px, rows, cols).reduce(_SUPERSAMPLE), np.float64) / 255.0
 
 
-def text_lines(text: str, rows: int, cols: int) -> list[tuple[int, int]]:
-    """The rows each line of ``text_image(text, rows, cols)`` occupies: [(first row,
-    end row)] top to bottom, each band cut midway between its ink and its neighbours'
-    (bands of adjacent lines may share a row)."""
+def text_lines(text: str, rows: int, cols: int) -> list[tuple[int, int, str]]:
+    """The rows each line of ``text_image(text, rows, cols)`` occupies, and the line:
+    [(first row, end row, its words)] top to bottom, lines with no ink left out, each
+    band cut midway between its ink and its neighbours' (bands of adjacent lines may
+    share a row)."""
     em_px, layout = text_layout(text, rows, cols)
     lines = layout.split("\n")
-    inks = []
+    inked = []  # (first, end) in rows, the line
     for i in range(len(lines)):
         # The other lines blanked, not removed, keep this one where the layout puts it.
         alone = "\n".join(line if j == i else " " for j, line in enumerate(lines))
         ink = np.flatnonzero(np.asarray(_drawn(alone, em_px, rows, cols)).any(axis=1))
-        inks.append((ink[0] / _SUPERSAMPLE, (ink[-1] + 1) / _SUPERSAMPLE) if len(ink) else None)
-    inked = [band for band in inks if band is not None]
-    cuts = [0.0] + [(a[1] + b[0]) / 2 for a, b in zip(inked, inked[1:])] + [float(rows)]
-    return [(int(np.floor(cuts[i])), int(np.ceil(cuts[i + 1]))) for i in range(len(inked))]
+        if len(ink):
+            inked.append(((ink[0] / _SUPERSAMPLE, (ink[-1] + 1) / _SUPERSAMPLE), lines[i]))
+    cuts = [0.0] + [(a[0][1] + b[0][0]) / 2 for a, b in zip(inked, inked[1:])] + [float(rows)]
+    return [(int(np.floor(cuts[i])), int(np.ceil(cuts[i + 1])), line) for i, (_, line) in enumerate(inked)]
 
 
 def _drawn(layout: str, em_px: float, rows: int, cols: int):

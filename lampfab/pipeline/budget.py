@@ -213,9 +213,7 @@ def _text_sides(text: str, target: np.ndarray, field_mm2: np.ndarray) -> dict | 
     side = np.zeros(cols, bool)
     side[:edge] = side[cols - edge:] = True
     ink = target > 0.5
-    lines = [line for line in targets.text_layout(text, rows, cols)[1].split("\n") if line.strip()]
-    reaching = [line for line, (first, end) in zip(lines, targets.text_lines(text, rows, cols))
-                if (ink[first:end] & side).any()]
+    reaching = [line for first, end, line in targets.text_lines(text, rows, cols) if (ink[first:end] & side).any()]
     if not reaching or not (ink & ~side).any():
         return None
     diameter = sharpness.DIAMETER_SIGMAS * np.sqrt(np.maximum(field_mm2[..., 0], field_mm2[..., 1]))

@@ -116,11 +116,11 @@ def test_text_lines_hold_each_line_and_only_its_neighbours_margin():
     assert len(bands) == targets.text_layout("Dream big little star", rows, cols)[1].count("\n") + 1 == 4
     assert bands[0][0] == 0 and bands[-1][1] == rows
     lit = np.flatnonzero(img.any(axis=1))
-    covered = set().union(*(range(a, b) for a, b in bands))
+    covered = set().union(*(range(a, b) for a, b, _ in bands))
     assert set(lit) <= covered
     # Adjacent bands meet (or share the row their inks' gap is cut in), never overlap more.
     assert all(0 <= a[1] - b[0] <= 1 for a, b in zip(bands, bands[1:]))
-    assert all(b - a >= 0.6 * rows / len(bands) for a, b in bands)
+    assert all(b - a >= 0.6 * rows / len(bands) for a, b, _ in bands)
 
 
 # -- panorama -----------------------------------------------------------------------
