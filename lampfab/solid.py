@@ -22,6 +22,7 @@ equal to outer volume minus the cavity volume inside the outer surface.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -173,14 +174,17 @@ def plan_bore(inner_vertices: np.ndarray, inner_faces: np.ndarray, mount_radius_
     if reach < need:
         where = (f"its flat bottom at z = {z0:.2f} mm reaches {reach:.2f} mm from the axis"
                  if reach > 0 else f"it has no flat bottom around the axis at its lowest z = {z0:.2f} mm")
-        wider = (f" or >= {extent + BORE_LEDGE_MM:.2f} (a counterbore opening the whole floor, which reaches "
+        # The bounds named are rounded to 0.01 mm towards the side that is accepted, so
+        # that the value a user copies from the message passes.
+        wider = (f" or >= {math.ceil(100 * (extent + BORE_LEDGE_MM - tolerances.WELD_MM)) / 100:.2f} "
+                 f"(a counterbore opening the whole floor, which reaches "
                  f"{extent:.2f} mm)" if reach > 0 and whole else "")
         raise LampfabError(
             f"mount_radius_mm {r:g} is too large for the inner layer: the bore enters the cavity through "
             f"the inner layer's flat bottom and needs it to reach {need:.2f} mm from the axis (bore radius + "
             f"{BORE_LEDGE_MM} mm ledge), but {where}; a bore in between would cut glass beside the cavity. "
-            f"Use mount_radius_mm <= {max(reach - BORE_LEDGE_MM, 0):.2f}{wider}, or give the inner layer a "
-            f"wider flat bottom centred on the axis")
+            f"Use mount_radius_mm <= {max(math.floor(100 * (reach - BORE_LEDGE_MM)) / 100, 0):.2f}{wider}, "
+            f"or give the inner layer a wider flat bottom centred on the axis")
     overlap = min(BORE_OVERLAP_MM, 0.5 * (z1 - z0))
     return Bore(radius_mm=r, sections=int(sections), z_bottom_mm=-BORE_BELOW_MM, z_floor_mm=z0,
                 z_top_mm=z0 + overlap, floor_reach_mm=reach, floor_extent_mm=extent)

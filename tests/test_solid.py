@@ -44,6 +44,18 @@ def test_bore_wider_than_the_inner_floor_is_refused():
     assert solid.plan_bore(v, f, 19.3).floor_reach_mm == pytest.approx(20 * np.cos(np.pi / 32))
 
 
+def test_the_bounds_a_refused_bore_names_are_accepted():
+    import re
+
+    v, f = inner(sections=1024, radius_mm=16.0)   # the floor reaches 16 cos(pi/1024): 15.99992 mm
+    with pytest.raises(LampfabError) as refused:
+        solid.plan_bore(v, f, 15.5)
+    narrower, wider = (float(x) for x in re.search(r"<= ([0-9.]+) or >= ([0-9.]+)", str(refused.value)).groups())
+    assert narrower == 15.49    # rounded down: 15.50 itself needs 16.00 mm of floor
+    assert not solid.plan_bore(v, f, narrower).counterbore
+    assert solid.plan_bore(v, f, wider).counterbore
+
+
 def test_counterbore_opens_the_whole_floor():
     v, f = inner()       # the floor reaches 20 mm: a counterbore needs >= 20.5
     lens = solid.build_solid(CYL, bumps(), 2, v, f, mount_radius_mm=20.5)
