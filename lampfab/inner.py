@@ -15,18 +15,20 @@ import numpy as np
 from . import tolerances
 from .checks.mesh import inspect_mesh
 from .errors import LampfabError
+from .profile import DEFAULT_HOLLOW_RADIUS_MM
 
 DEFAULT_INNER = Path(__file__).resolve().parent / "data" / "inner_default.obj"
 FORMATS = (".obj", ".ply", ".stl", ".glb", ".off")
 
 
-def default_inner_mesh(radius_mm: float = 12.0, z0_mm: float = 10.0, z1_mm: float = 86.0,
+def default_inner_mesh(radius_mm: float = DEFAULT_HOLLOW_RADIUS_MM, z0_mm: float = 10.0, z1_mm: float = 86.0,
                        sections: int = 1024):
     """The bundled inner layer: a cylinder with a 45° conical roof, 1024 facets around (mm).
 
-    Slim and tall (r 12 mm, side wall up to 29 mm above the LED): light through the
-    side wall covers +-67° of elevation, and light through the roof leaves by the top
-    cap.  A wide, low cavity would make the roof bend light onto the same part of the
+    Slim and tall (r 12 mm by default, side wall up to 29 mm above the LED): light
+    through the side wall covers +-67° of elevation, and light through the roof leaves
+    by the top cap.  A wider hollow (``[lens] hollow_radius_mm``) lets longer fins keep
+    the next wall's LED off a sector's edge, and sharpens the pictures (bench/log).  A wide, low cavity would make the roof bend light onto the same part of the
     outer surface as the side wall, from another direction: no surface can send both
     to one place.
 
@@ -43,31 +45,29 @@ def default_inner_mesh(radius_mm: float = 12.0, z0_mm: float = 10.0, z1_mm: floa
 
 
 def load_inner(path: str | Path | None, scale: float, light_mm: np.ndarray,
-               outer_radius_mm: float, max_offset_mm: float, height_mm: float):
-    """Read, weld, repair and validate the inner layer.
+               outer_radius_mm: float, max_offset_mm: float, height_mm: float,
+               hollow_radius_mm: float = DEFAULT_HOLLOW_RADIUS_MM):
+    """Read, weld, repair and validate the inner layer: the file at ``path``, or with
+    none the bundled one, ``default_inner_mesh`` with a hollow of ``hollow_radius_mm``.
 
     Returns (vertices (n, 3) float64 mm, faces (m, 3) int64), outward winding
     (normals point away from the light, into the glass).
     """
     import trimesh
 
-    path = Path(path) if path else DEFAULT_INNER
-    where = f"inner layer {path}"
-    if path.suffix.lower() not in FORMATS:
-        raise LampfabError(f"{where}: unsupported format; use one of {', '.join(FORMATS)}")
-    if not path.is_file():
-        raise LampfabError(f"{where}: file not found")
-    try:
-        loaded = trimesh.load(path, force="mesh", process=False)
-    except FileNotFoundError:
-        raise LampfabError(f"{where}: file not found") from None
-    except Exception as exc:  # noqa: BLE001 - trimesh raises many types on bad files
-        raise LampfabError(f"{where}: cannot read it ({type(exc).__name__}: {exc})") from None
-    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-        raise LampfabError(f"{where}: holds no triangles")
-    vertices = np.asarray(loaded.vertices, np.float64)
-    if path.suffix.lower() == ".glb":  # glTF is metres with Y up, by its specification
-        vertices = 1000.0 * np.stack([vertices[:, 0], -vertices[:, 2], vertices[:, 1]], axis=1)
+    if not path and hollow_radius_mm == DEFAULT_HOLLOW_RADIUS_MM:
+        path = DEFAULT_INNER  # the same recipe written out, as every earlier design read it
+    if path:
+        path = Path(path)
+        where = f"inner layer {path}"
+        loaded = _read_mesh(path, where)
+        vertices = np.asarray(loaded.vertices, np.float64)
+        if path.suffix.lower() == ".glb":  # glTF is metres with Y up, by its specification
+            vertices = 1000.0 * np.stack([vertices[:, 0], -vertices[:, 2], vertices[:, 1]], axis=1)
+    else:
+        where = f"the bundled inner layer (hollow_radius_mm {hollow_radius_mm:g})"
+        loaded = default_inner_mesh(radius_mm=hollow_radius_mm)
+        vertices = np.asarray(loaded.vertices, np.float64)
     mesh = trimesh.Trimesh(vertices * scale, loaded.faces, process=False)
     mesh.merge_vertices(digits_vertex=int(-np.log10(tolerances.WELD_MM)))
     mesh.update_faces(mesh.unique_faces())
@@ -101,6 +101,25 @@ def load_inner(path: str | Path | None, scale: float, light_mm: np.ndarray,
         raise LampfabError(f"{where}: spans z {z.min():.2f} to {z.max():.2f} mm; it must stay inside the "
                            f"lens (0 to {height_mm} mm) so the caps close it")
     return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
+
+
+def _read_mesh(path: Path, where: str):
+    """The triangles of the file at ``path`` as one trimesh, or a one-line error."""
+    import trimesh
+
+    if path.suffix.lower() not in FORMATS:
+        raise LampfabError(f"{where}: unsupported format; use one of {', '.join(FORMATS)}")
+    if not path.is_file():
+        raise LampfabError(f"{where}: file not found")
+    try:
+        loaded = trimesh.load(path, force="mesh", process=False)
+    except FileNotFoundError:
+        raise LampfabError(f"{where}: file not found") from None
+    except Exception as exc:  # noqa: BLE001 - trimesh raises many types on bad files
+        raise LampfabError(f"{where}: cannot read it ({type(exc).__name__}: {exc})") from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise LampfabError(f"{where}: holds no triangles")
+    return loaded
 
 
 def check_led_inside(vertices: np.ndarray, faces: np.ndarray, source, where: str) -> None:

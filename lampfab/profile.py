@@ -32,6 +32,10 @@ def _spec(default, lo=None, hi=None, choices=None, doc=""):
     return field(default=default, metadata={"lo": lo, "hi": hi, "choices": choices, "doc": doc})
 
 
+# The bundled inner layer's hollow (``inner.default_inner_mesh``), when no inner_mesh is given.
+DEFAULT_HOLLOW_RADIUS_MM = 12.0
+
+
 @dataclass(frozen=True)
 class Lens:
     kind: str = _spec("cylinder", choices=LENS_KINDS,
@@ -40,6 +44,8 @@ class Lens:
     height_mm: float = _spec(90.0, 10.0, 600.0, doc="height of the lens solid, base on z = 0")
     light_height_mm: float = _spec(45.0, 1.0, 599.0, doc="LED centre above the base")
     inner_mesh: str = _spec("", doc="inner layer file (OBJ/PLY/STL/OFF, or GLB read in metres); empty: bundled default")
+    hollow_radius_mm: float = _spec(DEFAULT_HOLLOW_RADIUS_MM, 4.0, 40.0, doc="the bundled inner layer's hollow: its radius (a cylinder "
+                                                         "from z 10 mm, a 45 degree cone roof to z 86 mm)")
     inner_scale: float = _spec(1.0, 1e-4, 1e4, doc="scale applied to the inner mesh (Blender metres -> 1000)")
     max_offset_mm: float = _spec(20.0, 0.1, 100.0, doc="bound on the radial heightmap, both ways")
 
@@ -282,6 +288,9 @@ def load_design(name_or_path: str) -> Design:
             raise LampfabError(f"{path}: [{section}] must be a table")
         parts[section] = _build(cls, table, path, section)
     design = Design(name=path.stem, path=str(path), **parts)
+    if design.lens.inner_mesh and "hollow_radius_mm" in data.get("lens", {}):
+        raise LampfabError(f"{path}: [lens] hollow_radius_mm sizes the bundled inner layer, and inner_mesh "
+                           f"replaces it with {design.lens.inner_mesh}: set one of them")
     if design.lens.kind == "panel":
         _check_panel(design, data, path)
     else:

@@ -72,3 +72,21 @@ def test_bundled_inner_layer_is_the_documented_revolve():
     assert bundled.faces.shape == made.faces.shape
     assert np.allclose(np.sort(bundled.vertices, axis=0), np.sort(made.vertices, axis=0), atol=1e-6)
     assert bundled.volume == pytest.approx(made.volume, rel=1e-9)
+
+
+def test_the_bundled_hollow_takes_the_radius_asked_for():
+    v, f = inner.load_inner(None, 1.0, LIGHT, 45.0, 20.0, 90.0, hollow_radius_mm=16.0)
+    r = np.hypot(v[:, 0], v[:, 1])
+    assert r.max() == pytest.approx(16.0) and v[:, 2].min() == pytest.approx(10.0)
+    assert v[:, 2].max() == pytest.approx(86.0)
+    # its wall stands up to the 45 degree roof, which starts the radius below the apex
+    assert v[r > 15.99, 2].max() == pytest.approx(70.0)
+    assert inner.winding_number(v, f, LIGHT) == pytest.approx(1.0)
+    assert trimesh.Trimesh(v, f, process=False).is_watertight
+    default_v, _ = load(None)
+    assert np.hypot(default_v[:, 0], default_v[:, 1]).max() == pytest.approx(inner.DEFAULT_HOLLOW_RADIUS_MM)
+
+
+def test_a_bundled_hollow_too_wide_for_the_outer_layer_is_refused():
+    with pytest.raises(LampfabError, match=r"bundled inner layer \(hollow_radius_mm 30\): reaches radius 30\.00"):
+        inner.load_inner(None, 1.0, LIGHT, 45.0, 20.0, 90.0, hollow_radius_mm=30.0)

@@ -21,6 +21,9 @@ def test_bundled_design_profiles_load(name):
     ("[room]\nwalls = ['ceiling']\n", ["walls", "ceiling", "front"]),
     ("[lens]\nouter_radius_mm = 60\n[room]\nwall_distance_mm = 110\n", ["walls behind or inside the lamp"]),
     ("[lens]\nlight_height_mm = 200\n", ["light_height_mm", "inside the lens"]),
+    ("[lens]\nhollow_radius_mm = 2\n", ["hollow_radius_mm", "out of range", "4.0 to 40.0"]),
+    ("[lens]\ninner_mesh = 'mine.obj'\nhollow_radius_mm = 16\n", ["hollow_radius_mm", "inner_mesh", "mine.obj",
+                                                                  "set one of them"]),
     ("[optimise]\n", ["unknown section"]),
     ("[lens\n", ["not valid TOML"]),
 ])

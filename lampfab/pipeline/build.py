@@ -125,7 +125,8 @@ class Build:
 
         lens = self.design.lens
         vertices, faces = inner.load_inner(lens.inner_mesh or None, lens.inner_scale, self.light,
-                                           lens.outer_radius_mm, lens.max_offset_mm, lens.height_mm)
+                                           lens.outer_radius_mm, lens.max_offset_mm, lens.height_mm,
+                                           lens.hollow_radius_mm)
         inner.check_led_inside(vertices, faces, self.source, f"{self.design.path} with LED={self.led.name}")
         return vertices, faces
 

@@ -16,6 +16,7 @@ from PIL import Image
 
 from lampfab import inner, profile, room, targets
 from lampfab.errors import LampfabError
+from lampfab.pipeline.build import Build
 
 from tests.helpers import ROOT, TINY_LED, cli, make
 
@@ -303,6 +304,18 @@ def test_text_and_panorama_together_is_one_line(tmp_path, tiny_profile):
     run = cli("prepare", "--out", tmp_path / "b", "--profile", tiny_profile, "--text", "Hi", "--panorama",
               ROOT / "examples" / "panorama.png")
     assert run.returncode == 2 and run.stderr.count("\n") == 1 and "choose one" in run.stderr
+
+
+def test_a_profile_sizes_the_bundled_hollow(tmp_path):
+    """``[lens] hollow_radius_mm`` in a copied profile is the hollow the build designs around."""
+    mine = tmp_path / "wide hollow.toml"
+    mine.write_text((ROOT / "profiles" / "default.toml").read_text().replace(
+        "[lens]\n", "[lens]\nhollow_radius_mm = 16.0\n", 1))
+    build = Build.open(tmp_path / "b", str(mine), "sla_resin")
+    v, f = build.inner()
+    assert np.hypot(v[:, 0], v[:, 1]).max() == pytest.approx(16.0)
+    v12, _ = Build.open(tmp_path / "b", "default", "sla_resin").inner()
+    assert np.hypot(v12[:, 0], v12[:, 1]).max() == pytest.approx(12.0)
 
 
 # -- Blender round trip ----------------------------------------------------------------
