@@ -28,9 +28,10 @@ def default_inner_mesh(radius_mm: float = DEFAULT_HOLLOW_RADIUS_MM, z0_mm: float
     Slim and tall (r 12 mm by default, side wall up to 29 mm above the LED): light
     through the side wall covers +-67° of elevation, and light through the roof leaves
     by the top cap.  A wider hollow (``[lens] hollow_radius_mm``) lets longer fins keep
-    the next wall's LED off a sector's edge, and sharpens the pictures (bench/log).  A wide, low cavity would make the roof bend light onto the same part of the
-    outer surface as the side wall, from another direction: no surface can send both
-    to one place.
+    the next wall's LED off a sector's edge, and sharpens the pictures (bench/log).  A
+    wide, low cavity would make the roof bend light onto the same part of the outer
+    surface as the side wall, from another direction: no surface can send both to one
+    place.
 
     1024 facets: at 256 their edges throw visible stripes on the walls (the source's
     "dark bands"); at 1024 the gaps are ~3 mm at 1 m, below a wall pixel.  The conical

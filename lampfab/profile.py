@@ -44,8 +44,9 @@ class Lens:
     height_mm: float = _spec(90.0, 10.0, 600.0, doc="height of the lens solid, base on z = 0")
     light_height_mm: float = _spec(45.0, 1.0, 599.0, doc="LED centre above the base")
     inner_mesh: str = _spec("", doc="inner layer file (OBJ/PLY/STL/OFF, or GLB read in metres); empty: bundled default")
-    hollow_radius_mm: float = _spec(DEFAULT_HOLLOW_RADIUS_MM, 4.0, 40.0, doc="the bundled inner layer's hollow: its radius (a cylinder "
-                                                         "from z 10 mm, a 45 degree cone roof to z 86 mm)")
+    hollow_radius_mm: float = _spec(DEFAULT_HOLLOW_RADIUS_MM, 4.0, 40.0,
+                                    doc="radius of the bundled inner layer's hollow (a cylinder from z 10 mm, "
+                                        "a 45 degree cone roof to z 86 mm); with inner_mesh empty")
     inner_scale: float = _spec(1.0, 1e-4, 1e4, doc="scale applied to the inner mesh (Blender metres -> 1000)")
     max_offset_mm: float = _spec(20.0, 0.1, 100.0, doc="bound on the radial heightmap, both ways")
 
