@@ -45,20 +45,20 @@ def table(build: Path, photons: int) -> str:
     light = loaded.design["light"]
     if light.get("shape") != "post":
         return f"{build.name}: not a post's LEDs ({light.get('shape')}); nothing to split"
-    bounces = Verify().max_bounces
-    full, _ = verify.render_design(loaded, 64, photons, SEED, bounces)
+    settings = Verify()
+    full, _ = verify.render_design(loaded, settings.image_px, photons, SEED, settings.max_bounces)
     alone = {}
     for facing in light["facing_deg"]:
         loaded.design["light"] = dict(light, facing_deg=[facing])
-        alone[facing], _ = verify.render_design(loaded, 64, photons, SEED, bounces)
+        alone[facing], _ = verify.render_design(loaded, settings.image_px, photons, SEED, settings.max_bounces)
     loaded.design["light"] = light
     n_leds = len(light["facing_deg"])
-    head = " | ".join(f"{i + 1}/8" for i in range(BANDS))
+    head = " | ".join(f"{i + 1}/{BANDS}" for i in range(BANDS))
     rows = [f"`{build.name}`, {photons / 1e6:g} M photons; columns: the picture's eighths, left to right", "",
             f"| wall | light from | {head} |", "|---|---|" + "---|" * BANDS]
     for k, wall in enumerate(loaded.walls):
         total = _bands(full[k])
-        # Each LED alone emits all the photons: a third of them is its share of the full render.
+        # Each LED alone emits all the photons; in the full render each sends one n-th of them.
         for facing, images in alone.items():
             facing_wall = _facing_wall(loaded.walls, facing)
             share = _bands(images[k]) / n_leds / np.maximum(total, 1e-300)
