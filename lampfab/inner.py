@@ -45,6 +45,15 @@ def default_inner_mesh(radius_mm: float = DEFAULT_HOLLOW_RADIUS_MM, z0_mm: float
     return trimesh.creation.revolve(profile, sections=sections)
 
 
+def inner_file(path: str | Path | None, hollow_radius_mm: float = DEFAULT_HOLLOW_RADIUS_MM) -> Path | None:
+    """The file ``load_inner`` reads for ``path`` (None: the bundled layer): the bundled
+    one at its own hollow (the same recipe written out, as every earlier design read it),
+    or None where it makes the bundled layer with another hollow."""
+    if path:
+        return Path(path)
+    return DEFAULT_INNER if hollow_radius_mm == DEFAULT_HOLLOW_RADIUS_MM else None
+
+
 def load_inner(path: str | Path | None, scale: float, light_mm: np.ndarray,
                outer_radius_mm: float, max_offset_mm: float, height_mm: float,
                hollow_radius_mm: float = DEFAULT_HOLLOW_RADIUS_MM):
@@ -56,10 +65,8 @@ def load_inner(path: str | Path | None, scale: float, light_mm: np.ndarray,
     """
     import trimesh
 
-    if not path and hollow_radius_mm == DEFAULT_HOLLOW_RADIUS_MM:
-        path = DEFAULT_INNER  # the same recipe written out, as every earlier design read it
+    path = inner_file(path, hollow_radius_mm)
     if path:
-        path = Path(path)
         where = f"inner layer {path}"
         loaded = _read_mesh(path, where)
         vertices = np.asarray(loaded.vertices, np.float64)

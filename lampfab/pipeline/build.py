@@ -112,11 +112,15 @@ class Build:
         free, then open its report, with the profiles and the inner layer's file among
         the hashed inputs."""
         from .. import resources
-        from ..inner import DEFAULT_INNER
+        from ..inner import inner_file
 
         resources.check_memory(stage, self.design)
         files = {"design_profile": self.design.path, "fabrication_profile": self.fab.path,
-                 "led_profile": self.led.path, "inner_layer": self.design.lens.inner_mesh or DEFAULT_INNER}
+                 "led_profile": self.led.path}
+        # A bundled layer made with another hollow has no file: the profile describes it.
+        inner_layer = inner_file(self.design.lens.inner_mesh, self.design.lens.hollow_radius_mm)
+        if inner_layer:
+            files["inner_layer"] = inner_layer
         return artifacts.StageReport(stage, {**inputs, **files}, self.settings(), seed=self.design.optimize.seed)
 
     def inner(self) -> tuple[np.ndarray, np.ndarray]:
