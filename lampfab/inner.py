@@ -25,10 +25,11 @@ def default_inner_mesh(radius_mm: float = DEFAULT_HOLLOW_RADIUS_MM, z0_mm: float
                        sections: int = 1024):
     """The bundled inner layer: a cylinder with a 45° conical roof, 1024 facets around (mm).
 
-    Slim and tall (r 12 mm by default, side wall up to 29 mm above the LED): light
-    through the side wall covers +-67° of elevation, and light through the roof leaves
-    by the top cap.  A wider hollow (``[lens] hollow_radius_mm``) lets longer fins keep
-    the next wall's LED off a sector's edge, and sharpens the pictures (bench/log).  A
+    Slim and tall (r 16 mm by default, side wall up to 25 mm above the LED): light
+    through the side wall covers 57° above the LED's level to 65° below, and light
+    through the roof leaves by the top cap.  Wide enough for the default post's fins to
+    reach 14.5 mm, which keeps most of the next wall's LED off a sector's edge (a 12 mm
+    hollow, with fins 10.5 mm out, left words 0.03-0.04 of SSIM softer: bench/log).  A
     wide, low cavity would make the roof bend light onto the same part of the outer
     surface as the side wall, from another direction: no surface can send both to one
     place.

@@ -73,7 +73,7 @@ def test_guidance_names_the_sides_finishing_and_allowance():
     assert "each LED's emitting face upright and square to its wall, their middles 45 mm above the base" in post
     assert "shines level towards its wall" in post and "stand matt black fins" not in post
     fins = " ".join(guidance.advice(fab, load_led("post3535"), ["front"], np.array([0.0, 0.0, 45.0]), study))
-    assert "matt black fins, 10.5 mm out from the axis and 50 mm tall" in fins
+    assert "matt black fins, 14.5 mm out from the axis and 50 mm tall" in fins
     page = guidance.html(text, study)
     assert page.count("<tr>") == 5 and '<td class="fail">0.050</td>' in page and "20 um (profile)" in page
     sla = " ".join(guidance.advice(load_fabrication("sla_resin"), load_led("star3535"), ["front"], np.zeros(3),

@@ -60,8 +60,8 @@ def test_a_copied_led_profile_loads_from_its_path_as_the_readme_says(tmp_path):
 
 def test_the_default_led_is_one_package_per_wall_facing_it():
     led = profile.load_led(profile.DEFAULT_LED)
-    assert (led.shape, led.radius_mm, led.offset_mm, led.board_diameter_mm) == ("post", 1.5, 3.0, 22.0)
-    assert (led.fin_radius_mm, led.fin_height_mm) == (10.5, 50.0)
+    assert (led.shape, led.radius_mm, led.offset_mm, led.board_diameter_mm) == ("post", 1.5, 3.0, 30.0)
+    assert (led.fin_radius_mm, led.fin_height_mm) == (14.5, 50.0)
     assert 2 * led.fin_radius_mm < led.board_diameter_mm  # the fins slide through the bore
 
 

@@ -137,6 +137,6 @@ def test_an_led_that_pokes_out_of_the_cavity_is_refused(tmp_path):
     with pytest.raises(LampfabError, match=r"fins \(10.5 mm out, 80 mm tall\) reach \[.*, 5.0\] mm, outside"):
         pipeline.Build.open(tmp_path, "default", "sla_resin", str(tall)).inner()
     wide = tmp_path / "wide.toml"
-    wide.write_text("shape = 'post'\nradius_mm = 1.5\noffset_mm = 11.0\n")
-    with pytest.raises(LampfabError, match=r"glowing face \(1.5 mm radius\) reaches \[0.0, 12.5, 45.0\] mm"):
+    wide.write_text("shape = 'post'\nradius_mm = 1.5\noffset_mm = 15.0\n")
+    with pytest.raises(LampfabError, match=r"glowing face \(1.5 mm radius\) reaches \[0.0, 16.5, 45.0\] mm"):
         pipeline.Build.open(tmp_path, "default", "sla_resin", str(wide)).inner()

@@ -185,7 +185,7 @@ def test_light_reflected_by_the_cavity_enters_the_glass_across_it(mi, inner_laye
     near, far = slice(0, n), slice(n, None)
     assert np.all(p[near, 0] > 0) and np.all(p[far, 0] < 0)
     radius = np.hypot(p[:, 0], p[:, 1])
-    assert np.allclose(radius, radius[0], atol=0.05) and 10 < radius[0] < 14  # on the bore's wall (r 12 mm)
+    assert np.allclose(radius, radius[0], atol=0.05) and 14 < radius[0] < 18  # on the hollow's wall (r 16 mm)
     # Within the tilt of the bore's facets (1024 around: 0.35° each).
     assert np.allclose(d_glass[near], [1.0, 0.0, 0.0], atol=0.02)
     assert np.allclose(d_glass[far], [-1.0, 0.0, 0.0], atol=0.02)

@@ -243,7 +243,7 @@ def test_the_default_leds_face_their_walls_and_light_each_picture_top_to_bottom(
     out, run, _, _ = lamp
     light = json.loads((out / "design.json").read_text())["light"]
     assert (light["shape"], light["facing_deg"], light["offset_mm"]) == ("post", [90.0, 180.0, 0.0], 3.0)
-    assert (light["fin_radius_mm"], light["fin_height_mm"]) == (10.5, 50.0)
+    assert (light["fin_radius_mm"], light["fin_height_mm"]) == (14.5, 50.0)
     assert "with the 3 flat LEDs 1.5 mm between fins" in run.stdout
     # The fins' part to print, read back: one closed solid that passes the bore.
     vertices, faces = stl.read_stl(out / "fins.stl")

@@ -310,12 +310,12 @@ def test_a_profile_sizes_the_bundled_hollow(tmp_path):
     """``[lens] hollow_radius_mm`` in a copied profile is the hollow the build designs around."""
     mine = tmp_path / "wide hollow.toml"
     mine.write_text((ROOT / "profiles" / "default.toml").read_text().replace(
-        "[lens]\n", "[lens]\nhollow_radius_mm = 16.0\n", 1))
+        "[lens]\n", "[lens]\nhollow_radius_mm = 18.0\n", 1))
     build = Build.open(tmp_path / "b", str(mine), "sla_resin")
     v, f = build.inner()
-    assert np.hypot(v[:, 0], v[:, 1]).max() == pytest.approx(16.0)
-    v12, _ = Build.open(tmp_path / "b", "default", "sla_resin").inner()
-    assert np.hypot(v12[:, 0], v12[:, 1]).max() == pytest.approx(12.0)
+    assert np.hypot(v[:, 0], v[:, 1]).max() == pytest.approx(18.0)
+    v16, _ = Build.open(tmp_path / "b", "default", "sla_resin").inner()
+    assert np.hypot(v16[:, 0], v16[:, 1]).max() == pytest.approx(16.0)
 
 
 # -- Blender round trip ----------------------------------------------------------------
