@@ -48,8 +48,8 @@ def default_inner_mesh(radius_mm: float = DEFAULT_HOLLOW_RADIUS_MM, z0_mm: float
 
 def inner_file(path: str | Path | None, hollow_radius_mm: float = DEFAULT_HOLLOW_RADIUS_MM) -> Path | None:
     """The file ``load_inner`` reads for ``path`` (None: the bundled layer): the bundled
-    one at its own hollow (the same recipe written out, as every earlier design read it),
-    or None where it makes the bundled layer with another hollow."""
+    one at its own hollow (the recipe written out, so a maker can open the layer the
+    designs use), or None where it makes the bundled layer with another hollow."""
     if path:
         return Path(path)
     return DEFAULT_INNER if hollow_radius_mm == DEFAULT_HOLLOW_RADIUS_MM else None

@@ -108,7 +108,19 @@ def test_the_leds_board_widens_the_bore_never_narrows_it():
     star, mini = profile.load_led("star3535"), profile.load_led("mini1616")
     assert profile.with_bore_for(sla, star).mount_radius_mm == 10.0   # the 20 mm star board
     assert profile.with_bore_for(sla, mini).mount_radius_mm == 5.0
-    assert profile.with_bore_for(cnc, mini).mount_radius_mm == 12.5   # the mill's counterbore stays
+    assert profile.with_bore_for(cnc, mini).mount_radius_mm == 16.5   # the mill's counterbore stays
+
+
+@pytest.mark.parametrize("name", ["acrylic_cnc3", "acrylic_cnc4", "glass"])
+def test_a_shop_opens_the_whole_floor_of_the_bundled_cavity(name):
+    # A floor ledge around a narrower bore faces up, hidden from a tool entering from
+    # below (cavity_access fails); the counterbore must clear the bundled hollow's floor.
+    from lampfab.inner import default_inner_mesh
+    from lampfab.solid import plan_bore
+
+    mesh = default_inner_mesh()
+    fab = profile.with_bore_for(profile.load_fabrication(name), profile.load_led("post3535"))
+    assert plan_bore(mesh.vertices, mesh.faces, fab.mount_radius_mm).counterbore
 
 
 def test_a_print_prefers_gentle_slopes_and_may_steepen_a_mill_may_not():
