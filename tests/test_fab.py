@@ -63,7 +63,7 @@ def test_guidance_names_the_sides_finishing_and_allowance():
     assert "-x side (u 135 to 225 deg) lights the left wall" in joined
     assert "2000 grit" in joined and "Anneal" in joined and "witness lines" in joined
     assert "up to 50 um" in joined and "costs r 0.004 (within it)" in joined
-    assert "25 mm across" in joined and "Cree XLamp XQ-D" in joined and "(mini1616)" in joined
+    assert "33 mm across" in joined and "Cree XLamp XQ-D" in joined and "(mini1616)" in joined
     # A package on its board is mounted facing up, and the maker is told so.
     assert "facing straight up, 45 mm above the base" in joined and "nothing below the horizon" in joined
     ball = " ".join(guidance.advice(fab, load_led("opal10"), ["front"], np.array([0.0, 0.0, 45.0]), study))
