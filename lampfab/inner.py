@@ -29,7 +29,7 @@ def default_inner_mesh(radius_mm: float = DEFAULT_HOLLOW_RADIUS_MM, z0_mm: float
     through the side wall covers 57° above the LED's level to 65° below, and light
     through the roof leaves by the top cap.  Wide enough for the default post's fins to
     reach 14.5 mm, which keeps most of the next wall's LED off a sector's edge (a 12 mm
-    hollow, with fins 10.5 mm out, left words 0.03-0.04 of SSIM softer: bench/log).  A
+    hollow, with fins 10.5 mm out, left words 0.02-0.04 of SSIM softer: bench/log).  A
     wide, low cavity would make the roof bend light onto the same part of the outer
     surface as the side wall, from another direction: no surface can send both to one
     place.

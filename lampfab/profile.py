@@ -34,7 +34,7 @@ def _spec(default, lo=None, hi=None, choices=None, doc=""):
 
 # The bundled inner layer's hollow (``inner.default_inner_mesh``), when no inner_mesh is given:
 # 16 mm lets the default post's fins reach 14.5 mm, which keeps more of the next wall's
-# LED off each sector's edge; against 12 mm, words gained 0.03-0.04 of SSIM on every wall
+# LED off each sector's edge; against 12 mm, words gained 0.02-0.04 of SSIM on every wall
 # and the horse 0.02-0.035, for about 5 % of the light (bench/log/2026-12-06.md).
 DEFAULT_HOLLOW_RADIUS_MM = 16.0
 
