@@ -58,13 +58,25 @@ def measure(build, inner, runner, heights, targets) -> dict:
     return out
 
 
+def optimizer(build, inner, opt, limits=None):
+    """The refinement ``opt.method`` names for ``build``.  The source's method lights the
+    lens with its own point light at the LED's place, as the source does: lampfab refuses
+    that pairing for a maker's flat LEDs (they do not shine every way), but here it is
+    the method being measured, and both methods are scored with the profile's LED."""
+    targets = build.targets(opt.sensor_px)
+    if opt.method != "ptracer":
+        return build.optimizer(opt, inner, targets, limits)
+    return optimize.PtracerOptimizer(build.cylinder, *inner, build.source.point(), build.fab.ior, build.walls,
+                                     targets, opt, limits or build.limits)
+
+
 def run_method(name, build, inner, targets, budgets, start_heights, opt, elapsed0, limits=None) -> list[dict]:
     """Optimize until each budget (seconds of computing since the method started,
     ``elapsed0`` of init included), under ``limits`` (default: the profiles'); stops
     early once the schedule is done."""
     rows = []
     state = optimize.State(start_heights.copy(), 0, 0)
-    runner = build.optimizer(opt, inner, build.targets(opt.sensor_px), limits)
+    runner = optimizer(build, inner, opt, limits)
     spent = elapsed0
     last = None
     for budget in budgets:
@@ -119,7 +131,7 @@ def main() -> None:
                                           backtrack=False, preview_every=10**9, checkpoint_every=10**9)
         steps = args.ptracer_steps
         if not steps:
-            probe = build.optimizer(ptracer_opt, inner, build.targets(ptracer_opt.sensor_px))
+            probe = optimizer(build, inner, ptracer_opt)
             probe.gradient(np.zeros(grid), [0], seed=1)  # the first step compiles the kernels
             t0 = time.time()
             probe.gradient(np.zeros(grid), [0], seed=2)
@@ -135,7 +147,7 @@ def main() -> None:
                                             on_pass=lambda h: passes.append((time.time() - t0, h.copy())))
         init_s = time.time() - t0
         splat_opt = dataclasses.replace(d.optimize, preview_every=10**9, checkpoint_every=10**9)
-        probe = build.optimizer(splat_opt, inner, build.targets(splat_opt.sensor_px))
+        probe = optimizer(build, inner, splat_opt)
         pass_rows = []
         for k, (at, h) in enumerate(passes):
             row = dict(measure(build, inner, probe, h, targets), method=f"transport pass {k + 1}",
