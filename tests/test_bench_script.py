@@ -1,4 +1,5 @@
-"""bench/bench_methods.py (`make bench`) measures the source's method with the default LED."""
+"""bench/bench_methods.py (`make bench`) measures the source's method with the default LED;
+bench/slope_projection.py replays a refinement's slope projections under two solvers."""
 
 import dataclasses
 import importlib.util
@@ -9,8 +10,8 @@ import pytest
 from tests.helpers import ROOT
 
 
-def _load():
-    spec = importlib.util.spec_from_file_location("bench_methods", ROOT / "bench" / "bench_methods.py")
+def _load(name: str = "bench_methods"):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "bench" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)
@@ -34,3 +35,22 @@ def test_the_source_method_runs_with_the_default_posts_leds(tmp_path, tiny_profi
     runner = bench.optimizer(build, inner, opt)
     assert isinstance(runner, optimize.PtracerOptimizer)
     assert runner.source.shape == "post" and runner.source.radius_mm == 0.0  # a point at the LED's place
+
+
+def test_the_slope_projection_benchmark_replays_under_both_solvers(cyl):
+    """The same projections under the transforms' solver and the sparse LU: the same
+    passes and surfaces, and the projection's own solver back in place afterwards."""
+    import numpy as np
+
+    from lampfab import limits
+
+    bench = _load("slope_projection")
+    heights = np.zeros((64, 17))
+    heights[10:14, 6:10] = 8.0                          # far steeper than 45°
+    calls = [((cyl, heights, 45.0), {}), ((cyl, heights * 0.5, 45.0), {"max_overhang_deg": 45.0})]
+    own = bench.replay(calls, lambda diff, solver: solver)
+    lu = bench.replay(calls, lambda diff, solver: bench._SparseLU(diff))
+    assert own[0] == lu[0] and min(own[0]) > 0
+    for x, y in zip(own[2], lu[2], strict=True):
+        assert np.allclose(x, y, atol=1e-9)
+    assert isinstance(limits._edge_system(64, 17)[3], limits._GridLaplacian)

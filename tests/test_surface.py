@@ -26,6 +26,24 @@ def test_refine_keeps_node_values_and_adjoint_is_transpose(rng, cyl, creased):
     assert np.isclose(np.sum(fine * g), np.sum(h * surface.sample_adjoint(cyl, g, 16, 5)))
 
 
+@pytest.mark.parametrize("creased", [False, True])
+def test_radius_derivatives_are_the_node_to_sample_matrices(rng, cyl, creased):
+    """Evaluated from the spline's coefficients and its sparse basis, the radius and its
+    derivatives are what the dense node-to-sample matrices give, rows picked or not."""
+    cyl = surface.Cylinder(cyl.radius_mm, cyl.height_mm, creased)
+    nu, nv, mu, mv = 16, 6, 64, 21
+    h = rng.normal(size=(nu, nv))
+    u = [surface.u_matrix(nu, mu, d, creased) for d in range(3)]
+    z = [surface.open_matrix(nv, mv, d) / cyl.height_mm**d for d in range(3)]
+    expected = [cyl.radius_mm + u[0] @ h @ z[0].T, u[1] @ h @ z[0].T, u[0] @ h @ z[1].T,
+                u[2] @ h @ z[0].T, u[1] @ h @ z[1].T, u[0] @ h @ z[2].T]
+    for got, want in zip(surface.radius_derivatives(cyl, h, mu, mv), expected, strict=True):
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-9)
+    rows = np.array([0, 5, 63])
+    for got, want in zip(surface.radius_derivatives(cyl, h, mu, mv, order=1, rows=rows), expected, strict=False):
+        assert np.allclose(got, want[rows], rtol=1e-12, atol=1e-9)
+
+
 def test_closed_outer_mesh_is_a_watertight_outward_solid(cyl, rng):
     h = 2.0 * rng.normal(size=(32, 9))
     v, f = surface.closed_outer_mesh(cyl, h, 2)

@@ -361,6 +361,35 @@ def test_slopes_that_add_up_to_the_tilt_are_projected_in_a_few_passes(cyl):
     assert tilt <= 40.0 - limits.SLOPE_MARGIN_DEG + 1e-9
 
 
+@pytest.mark.parametrize("nu, nv", [(64, 17), (9, 4), (8, 2)])
+def test_the_slope_projections_solver_is_the_least_squares_one(rng, nu, nv):
+    """The transforms' solve of the edges' normal equations is a sparse LU's."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import splu
+
+    _, _, diff, solver = limits._edge_system(nu, nv)
+    rhs = diff.T @ rng.standard_normal(diff.shape[0])
+    expected = splu((diff.T @ diff + sp.identity(nu * nv) * 1e-9).tocsc()).solve(rhs)
+    got = solver.solve(rhs)
+    assert np.allclose(got - got.mean(), expected - expected.mean(), rtol=0, atol=1e-10)
+
+
+def test_a_place_that_overshoots_again_cuts_every_edge_around_it():
+    """Edges 0-1 (40°, far under its clamp) and 2-3 (55°, near it) around a place that
+    overshoots by 0.1°, edge 4-5 elsewhere: the steep edge is cut from its slope at once,
+    the gentle one from its clamp, and from its own slope once the place overshoots again
+    (from its clamp, it would take 40 passes to reach its slope)."""
+    a, b = np.array([0, 2, 4]), np.array([1, 3, 5])
+    tangent = np.tan(np.radians([40.0, 55.0, 58.0]))
+    over = np.array([0.1, 0.1, 0.1, 0.1, -1.0, -1.0])
+    start = np.full(3, 59.5)
+    clamps = start.copy()
+    limits._tighten(clamps, start, over, tangent, a, b)
+    assert np.allclose(clamps, [59.5 - limits.CLAMP_STEP_DEG, 55.0 - limits.CLAMP_STEP_DEG, 59.5])
+    limits._tighten(clamps, start, over, tangent, a, b)
+    assert np.allclose(clamps, [40.0 - limits.CLAMP_STEP_DEG, 55.0 - 2 * limits.CLAMP_STEP_DEG, 59.5])
+
+
 @pytest.mark.parametrize("nu, nv, k", [(64, 17, 16), (8, 3, 5), (6, 2, 1)])
 def test_the_overshoot_around_each_node_is_the_filtered_maximum(rng, nu, nv, k):
     """The slope projection's shortcut gives what a (2k + 1)-sample maximum filter,
