@@ -19,6 +19,7 @@ its creased seams are where the spline's end condition bends past the limit.
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import sys
 import tempfile
@@ -58,7 +59,7 @@ class _SparseLU:
 
 def record(build: Path) -> tuple[list[tuple], float]:
     """The optimize stage's ``limit_slopes`` calls (their arguments) and its seconds."""
-    settings = __import__("json").loads((build / "settings.json").read_text())
+    settings = json.loads((build / "settings.json").read_text())
     calls = []
     project = limits.limit_slopes
 

