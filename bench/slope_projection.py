@@ -122,19 +122,16 @@ def report(build: Path) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("builds", nargs="+", type=Path)
-    parser.add_argument("--record", action="store_true", help="append the tables to today's bench/log file")
+    parser.add_argument("build", type=Path, help="a build folder with its first design (make init)")
+    parser.add_argument("--record", action="store_true", help="append the table to today's bench/log file")
     args = parser.parse_args()
-    tables = []
-    for build in args.builds:
-        tables.append(report(build))
-        print(tables[-1] + "\n", flush=True)
+    text = report(args.build)
+    print(text, flush=True)
     if args.record:
         import log_section
 
-        path = log_section.append("## The slope projection in a refinement (bench/slope_projection.py)\n\n"
-                                  + "\n\n".join(tables))
-        print(f"recorded in {path}")
+        print("recorded in", log_section.append(
+            "## The slope projection in a refinement (bench/slope_projection.py)\n\n" + text))
 
 
 if __name__ == "__main__":
