@@ -48,7 +48,7 @@ SLOPE_MARGIN_DEG = 0.2
 # edge around it is cut from its own slope: at a creased seam the spline's end condition
 # bends it past the limit with the edges 10° and more under their clamps, which took the
 # horse's fine level 29-50 passes a call (4 s a step); this way at most 7, with the surface
-# moved about as far (bench/slope_projection.py).
+# moved about as far (bench/RESULTS.md, "The slope projection where it stalled").
 STEEP_EDGE_DEG = 10.0
 
 # The least a clamp tightens per pass where the spline still overshoots: with a quarter
