@@ -213,9 +213,12 @@ def _tighten(clamps: np.ndarray, start: np.ndarray, over: np.ndarray, edge_tange
     hit = np.flatnonzero(over_edge > 0)
     # The edges' slopes (deg) only there: arctan for the few, not every edge.
     edge_deg = np.degrees(np.arctan(edge_tangent[hit]))
-    steep = (edge_deg > clamps[hit] - STEEP_EDGE_DEG) | (clamps[hit] < start[hit])
+    # An edge sloping the other way (a rise clamp's edge facing up) is not cut from its
+    # slope, and no clamp falls below 0°: a negative overhang clamp would demand that the
+    # surface face up, and on a 32 x 9 grid such clamps drove the radius to 0.
+    steep = (edge_deg > clamps[hit] - STEEP_EDGE_DEG) | ((clamps[hit] < start[hit]) & (edge_deg > 0))
     clamps[hit[steep]] = np.minimum(clamps[hit[steep]], edge_deg[steep])
-    clamps[hit] -= np.maximum(CLAMP_STEP_DEG, over_edge[hit])
+    clamps[hit] = np.maximum(clamps[hit] - np.maximum(CLAMP_STEP_DEG, over_edge[hit]), 0.0)
 
 
 def _overshoot_deg(tangent: np.ndarray, limit_deg: float) -> np.ndarray:

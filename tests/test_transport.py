@@ -390,6 +390,19 @@ def test_a_place_that_overshoots_again_cuts_every_edge_around_it():
     assert np.allclose(clamps, [40.0 - limits.CLAMP_STEP_DEG, 55.0 - 2 * limits.CLAMP_STEP_DEG, 59.5])
 
 
+def test_an_overhang_clamp_never_demands_that_the_surface_face_up():
+    """A rise (overhang) edge sloping down, around a place that keeps overshooting by 30°:
+    its clamp is not cut to its own negative slope and stops at 0°.  Clamps below 0 drove
+    a small design's radius to 0 (NaN heights)."""
+    a, b = np.array([0]), np.array([1])
+    start = np.array([44.3])
+    clamps = start.copy()
+    for _ in range(4):
+        limits._tighten(clamps, start, np.array([30.0, 30.0]), np.tan(np.radians([-20.0])), a, b)
+        assert clamps[0] >= 0.0
+    assert clamps[0] == 0.0
+
+
 @pytest.mark.parametrize("nu, nv, k", [(64, 17, 16), (8, 3, 5), (6, 2, 1)])
 def test_the_overshoot_around_each_node_is_the_filtered_maximum(rng, nu, nv, k):
     """The slope projection's shortcut gives what a (2k + 1)-sample maximum filter,
