@@ -197,11 +197,17 @@ def sample_adjoint(cyl: Cylinder, grad_fine: np.ndarray, nu: int, nv: int) -> np
     return u_matrix(nu, mu, 0, cyl.creased).T @ grad_fine @ open_matrix(nv, mv)
 
 
+def coefficients(cyl: Cylinder, heights: np.ndarray) -> np.ndarray:
+    """(nu, nv) mm node offsets -> (nu, nv) the spline's B-spline coefficients."""
+    nu, nv = heights.shape
+    return u_basis(nu, cyl.creased).coef_from_nodes @ heights @ v_basis(nv).coef_from_nodes.T
+
+
 def evaluate(cyl: Cylinder, heights: np.ndarray, u: np.ndarray, z: np.ndarray) -> np.ndarray:
     """The spline s(u, z) at arbitrary points: (N,) rad, (N,) mm -> (N,) mm."""
     nu, nv = heights.shape
     ub, vb = u_basis(nu, cyl.creased), v_basis(nv)
-    coef = ub.coef_from_nodes @ np.asarray(heights, np.float64) @ vb.coef_from_nodes.T
+    coef = coefficients(cyl, np.asarray(heights, np.float64))
     u, z = np.asarray(u, np.float64), np.asarray(z, np.float64)
     out = np.empty(len(u))
     for start in range(0, len(u), 65536):
@@ -299,7 +305,7 @@ def radius_derivatives(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int, ord
     pick = slice(None) if rows is None else rows
     # The spline's coefficients once, then each sample from the four basis functions
     # over it (sparse): a tenth of the work of the dense node-to-sample matrices.
-    coef = u_basis(nu, cyl.creased).coef_from_nodes @ heights @ v_basis(nv).coef_from_nodes.T
+    coef = coefficients(cyl, heights)
     along_u = [u_design(nu, mu, d, cyl.creased)[pick] @ coef for d in range(order + 1)]
     pz = [v_design(nv, mv, d) / cyl.height_mm**d for d in range(order + 1)]
 
