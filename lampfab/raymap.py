@@ -111,8 +111,8 @@ def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, sour
                        ior: float, n_azimuth: int, n_elevation: int, seed: int) -> Photons:
     """One photon per cell of an (azimuth, sin elevation) grid, jittered inside its cell,
     refracted into the glass at the inner layer: inner_vertices (n, 3) mm, inner_faces
-    (m, 3) int wound outward (away from the light), ``source`` the LED (centre, beam;
-    the grid covers the sphere: below a flat LED's horizon, weightless photons)."""
+    (m, 3) int wound outward (away from the light), ``source`` the LED (its point light,
+    ``Source.origins``, and beam; below a flat LED's horizon, weightless photons)."""
     from .trace import first_hits
 
     rng = np.random.default_rng(seed)
@@ -123,7 +123,7 @@ def stratified_photons(inner_vertices: np.ndarray, inner_faces: np.ndarray, sour
     sin_el = -1.0 + 2.0 * s / n_elevation
     cos_el = np.sqrt(1.0 - sin_el**2)
     emitted = np.stack([cos_el * np.cos(phi), cos_el * np.sin(phi), sin_el], axis=1)
-    start = np.broadcast_to(source.position, emitted.shape)
+    start = source.origins(emitted)
     valid, prim, t = first_hits(inner_vertices, inner_faces, start, emitted)
     if valid.mean() < 0.99:  # more than the few that slip between facets (below)
         raise ValueError("photons leave the inner layer without crossing it: the light is not inside it")

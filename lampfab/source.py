@@ -122,17 +122,36 @@ class Source:
         take the rest: the mean is then under 1."""
         directions = np.asarray(directions, np.float64)
         if self.shape in FLAT:
-            normals = self.normals
-            cosines = np.maximum(directions @ normals.T, 0.0)
-            if self.fins:
-                azimuth = np.degrees(np.arctan2(directions[:, 1], directions[:, 0]))
-                off = (azimuth[:, None] - np.asarray(self.facing_deg)[None, :] + 180.0) % 360.0 - 180.0
-                half = np.radians(SECTOR_HALF_DEG)
-                window = np.degrees(np.arctan2(self.fin_radius_mm * np.sin(half),
-                                               self.fin_radius_mm * np.cos(half) - self.offset_mm))
-                cosines = np.where(np.abs(off) <= window, cosines, 0.0)
-            return 4.0 / len(normals) * cosines.sum(axis=1)
+            return 4.0 / len(self.normals) * self._face_cosines(directions).sum(axis=1)
         return np.ones(len(directions))
+
+    def origins(self, directions: np.ndarray) -> np.ndarray:
+        """Where the light of ``point()`` leaving in each of the unit ``directions`` (n, 3)
+        starts: (n, 3) float64 mm, the centre, or for a post the centre of the face that
+        sends it (the one it leaves most squarely, within the fins).  Directions no face
+        sends start at the centre."""
+        directions = np.asarray(directions, np.float64)
+        start = np.broadcast_to(self.position, directions.shape).copy()
+        if self.shape == "post":
+            cosines = self._face_cosines(directions)
+            face = np.argmax(cosines, axis=1)
+            lit = cosines.max(axis=1) > 0.0
+            start[lit] += self.offset_mm * self.normals[face[lit]]
+        return start
+
+    def _face_cosines(self, directions: np.ndarray) -> np.ndarray:
+        """(n, k) float64: the cosine of each of the unit ``directions`` (n, 3) from each
+        flat face's normal, 0 behind it and, for a post with fins, outside the azimuths
+        its fins leave it (up to their tips, as seen from its face)."""
+        cosines = np.maximum(directions @ self.normals.T, 0.0)
+        if self.fins:
+            azimuth = np.degrees(np.arctan2(directions[:, 1], directions[:, 0]))
+            off = (azimuth[:, None] - np.asarray(self.facing_deg)[None, :] + 180.0) % 360.0 - 180.0
+            half = np.radians(SECTOR_HALF_DEG)
+            window = np.degrees(np.arctan2(self.fin_radius_mm * np.sin(half),
+                                           self.fin_radius_mm * np.cos(half) - self.offset_mm))
+            cosines = np.where(np.abs(off) <= window, cosines, 0.0)
+        return cosines
 
     def describe(self) -> str:
         """The light in a few words, for reports."""

@@ -1,8 +1,9 @@
 """A first lens from optimal transport: each photon's goal on its wall, then the surface
 that lands it there.
 
-1. Photons leave the LED on a stratified grid of directions and are traced through the
-   actual inner layer (``raymap.stratified_photons``).  Each 90° sector of the lens sends
+1. Photons leave the LED's point light (a post's: each face's centre) on a stratified
+   grid of directions and are traced through the actual inner layer
+   (``raymap.stratified_photons``).  Each 90° sector of the lens sends
    its light to the wall it faces (the source's section 5.2).
 2. For each wall, entropic optimal transport (``ot``) from the sector's light, laid out by
    emission angle, to the wall's target image gives every photon a goal.  A band above
@@ -106,9 +107,9 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
            inner_vertices: np.ndarray, inner_faces: np.ndarray, source: Source, ior: float,
            limits: Limits, opt: Optimize, log=print, on_step=None, on_pass=None) -> tuple[np.ndarray, dict]:
     """The transport-based heightmap within ``limits``, on the (grid_u, grid_v) node grid
-    of ``opt`` (the ``[optimize]`` settings), for the LED ``source``'s beam from its
-    centre (the point light: a design shapes where the light goes, the refinement then
-    what the LED's size does to it).
+    of ``opt`` (the ``[optimize]`` settings), for the LED ``source``'s point light (its
+    beam from its centre, a post's from each face's centre: a design shapes where the
+    light goes, the refinement then what the LED's size does to it).
 
     targets: per wall (rows, cols) linear luminance.  From ``opt``: ``transport_photons``
     traced from the light (``seed``), ``transport_rounds`` Levenberg-Marquardt steps per

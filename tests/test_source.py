@@ -140,3 +140,25 @@ def test_an_led_that_pokes_out_of_the_cavity_is_refused(tmp_path):
     wide.write_text("shape = 'post'\nradius_mm = 1.5\noffset_mm = 15.0\n")
     with pytest.raises(LampfabError, match=r"glowing face \(1.5 mm radius\) reaches \[0.0, 16.5, 45.0\] mm"):
         pipeline.Build.open(tmp_path, "default", "sla_resin", str(wide)).inner()
+
+
+def test_the_transports_photons_leave_a_post_from_the_face_that_sends_them(default_design, inner_layer):
+    """The transport designs for the point light verify and the refinement trace: each
+    photon from its face's centre, not from the axis."""
+    post = Source(room.light_position(default_design), "post", 1.5, facing_deg=(0.0, 90.0, 180.0), offset_mm=3.0,
+                  fin_radius_mm=11.0, fin_height_mm=50.0)
+    d = _uniform_directions(20_000)
+    start = post.origins(d)
+    lit = post.intensity(d) > 0
+    face = np.argmax(d @ post.normals.T, axis=1)
+    assert np.allclose(start[lit], post.position + 3.0 * post.normals[face[lit]])
+    assert np.allclose(start[~lit], post.position)  # behind every face or past the fins: weightless
+    ph = raymap.stratified_photons(*inner_layer, post, 1.5, 64, 32, seed=2)
+    sent = ph.weight > 0
+    cos = np.maximum(ph.emitted[sent] @ post.normals.T, 0.0)
+    centre = post.position + 3.0 * post.normals[np.argmax(cos, axis=1)]
+    # Where each enters the glass lies on its ray from its face's centre, not from the axis.
+    along = ph.origin[sent] - centre
+    assert np.abs(np.cross(along, ph.emitted[sent])).max() < 1e-3
+    off_axis = np.abs(np.cross(ph.origin[sent] - post.position, ph.emitted[sent])).max(axis=1)
+    assert off_axis.max() > 2.0
