@@ -139,7 +139,7 @@ def check_led_inside(vertices: np.ndarray, faces: np.ndarray, source, where: str
     r = source.radius_mm
     up = {"cylinder": source.length_mm / 2, "sphere": r, "post": r}.get(source.shape, 0.0)
     rims = np.array([[0, 0, up], [0, 0, -up], [r, 0, 0], [-r, 0, 0], [0, r, 0], [0, -r, 0]])
-    centres = source.position + source.offset_mm * source.normals if source.shape == "post" else [source.position]
+    centres = source.face_centres
     part = {"sphere": "ball", "cylinder": f"{source.length_mm:g} mm filament"}.get(source.shape, "face")
     parts = [(f"glowing {part} ({r:g} mm radius) reaches", c + rim) for c in centres for rim in rims]
     if source.fins:

@@ -109,6 +109,13 @@ class Source:
         a = np.radians(np.asarray(self.facing_deg))
         return np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)
 
+    @property
+    def face_centres(self) -> np.ndarray:
+        """(k, 3) float64 mm: the centre of each of a post's LEDs, or the centre alone."""
+        if self.shape == "post":
+            return self.position + self.offset_mm * self.normals
+        return self.position[None, :]
+
     def point(self) -> "Source":
         """The same beam from a point: the centre, or each of a post's faces' centres
         (the design places its light by where they are)."""
@@ -136,7 +143,7 @@ class Source:
             cosines = self._face_cosines(directions)
             face = np.argmax(cosines, axis=1)
             lit = cosines.max(axis=1) > 0.0
-            start[lit] += self.offset_mm * self.normals[face[lit]]
+            start[lit] = self.face_centres[face[lit]]
         return start
 
     def _face_cosines(self, directions: np.ndarray) -> np.ndarray:
