@@ -10,7 +10,8 @@ Each case is one fresh `make lamp` into build/results/<name> (its wall time meas
 around make), then examples/figures.py's pictures, then the tables between the
 `<!-- results:NAME -->` and `<!-- /results:NAME -->` markers of README.md,
 docs/results.md, docs/fabrication.md and bench/RESULTS.md, rewritten from every case's
-reports (a case not run this time keeps the figures its last build left).  scikit-image's
+reports (a case not run this time keeps the figures its last build left, and one with
+no build here the row the page has).  scikit-image's
 samples are written to build/results/inputs.  The ``*_point_design`` cases design the
 same lamps for the ideal point light (a copy of the default profile), for the
 before-and-after picture examples/results/led_design.png and its table.
@@ -238,7 +239,11 @@ def write_tables(paths=PAGES) -> None:
     for path in paths:
         text = path.read_text()
         for name, head in TABLES.items():
-            rows = [row for row in (_row(c, name) for c in CASES if name in c.tables) if row]
+            block = re.search(rf"<!-- results:{name} -->\n(.*?)<!-- /results:{name} -->", text, flags=re.S)
+            kept = {line.split("|")[1].strip(): line for line in (block.group(1) if block else "").splitlines()
+                    if line.startswith("| ")}
+            rows = [row for row in (_row(c, name) or kept.get(c.before if name == "led_design" else c.name)
+                                    for c in CASES if name in c.tables) if row]
             block = "\n".join([head, *rows])
             text = re.sub(rf"(<!-- results:{name} -->\n).*?(<!-- /results:{name} -->)",
                           lambda m: m.group(1) + block + "\n" + m.group(2), text, flags=re.S)
@@ -265,10 +270,12 @@ def main() -> None:
             made = "" if case.before else f" -> {figures.figure(case.name, BUILDS)}"
             print(f"{case.name}: {'verify' if args.verify_only else 'make lamp'} {seconds / 60:.1f} min{made}",
                   flush=True)
-    pairs = [(c.name, c.before) for c in CASES if c.before and all((BUILDS / n / "verify.json").exists()
-                                                                    for n in (c.name, c.before))]
-    if pairs:
+    pairs = [(c.name, c.before) for c in CASES if c.before]
+    if all((BUILDS / n / "verify.json").exists() for pair in pairs for n in pair):
         print(f"before and after: {figures.before_after(pairs, BUILDS)}")
+    else:
+        print("before and after: examples/results/led_design.png kept (it needs every *_point_design case "
+              "and its LED design built here)")
     write_tables()
 
 

@@ -1,14 +1,14 @@
 """A first lens from optimal transport: each photon's goal on its wall, then the surface
 that lands it there.
 
-1. Photons leave the LED's point light (a post's: each face's centre) on a stratified
-   grid of directions and are traced through the actual inner layer
-   (``raymap.stratified_photons``).  Each 90° sector of the lens sends
-   its light to the wall it faces (the source's section 5.2).
+1. Photons leave the LED's point light (a post's: each face's centre) on a stratified grid
+   of directions, traced through the actual inner layer (``raymap.stratified_photons``).
+   Each 90° sector of the lens sends its light to the wall it faces (the source's 5.2).
 2. For each wall, entropic optimal transport (``ot``) from the sector's light, laid out by
-   emission angle, to the wall's target image gives every photon a goal.  A band above
-   and below the image takes ``dump_share`` of the light: the top and bottom of the lens
-   would need slopes steeper than the profile allows to squeeze all of theirs in.
+   emission angle, to the wall's target image gives every photon a goal (none to light
+   that meets the outer surface in another sector).  A band above and below the image
+   takes ``dump_share`` of the light, which the lens's top and bottom cannot squeeze in
+   under the profile's slopes.
 3. ``raymap.RayMap`` fits the heightmap (coarse grid, then the profile's) so that each
    photon, refracted at the facet of the tessellated surface it meets, lands at its goal.
 4. Correction passes trace the lens, move the light from where it really lands part of
@@ -133,6 +133,10 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     ph = raymap.stratified_photons(inner_vertices, inner_faces, source, ior, n_azimuth, n_elevation, opt.seed)
     light_mm = source.position
     spans = sector_spans(walls, targets, light_mm)
+    # A post's light leaves its faces off the axis: past an off-centre sector's edge, some meets
+    # the outer surface in the next sector; with goals, it asked the crease to light two walls.
+    emitted_deg = np.degrees(np.arctan2(ph.emitted[:, 1], ph.emitted[:, 0]))
+    crossing = span_of(exit_azimuth_deg(ph, cyl.radius_mm), walls, spans) != span_of(emitted_deg, walls, spans)
     coarse = coarse_grid(grid)
     first_steps = 2 * iterations if coarse != grid else iterations
 
@@ -140,6 +144,7 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
         """Goals from the source and the first fit (on the coarse grid if there is one)
         under ``limits``: what the passes start from."""
         wall_of = sector_of(ph.emitted, walls, spans, light_mm, ior, limits.max_slope_deg)
+        wall_of[crossing] = -1
         fitter = raymap.RayMap(cyl, opt.tessellation, ph, walls, wall_of, ior, limits, opt.smoothness)
         plain = fitter.trace(np.zeros(coarse))
         lit = np.zeros(len(wall_of), bool)
@@ -261,14 +266,29 @@ def sector_of(emitted: np.ndarray, walls: list[Wall], spans: dict[str, tuple[flo
     """(n,) int: the wall whose sector (``spans``) each photon leaves through (by emission
     azimuth), or -1 where no wall's sector holds it or the photon cannot reach its wall
     with a makeable slope."""
-    azimuth = np.degrees(np.arctan2(emitted[:, 1], emitted[:, 0]))
     reach = np.radians(REACH_MARGIN * max_deflection_deg(ior, max_tilt_deg))
-    out = np.full(len(emitted), -1)
+    out = span_of(np.degrees(np.arctan2(emitted[:, 1], emitted[:, 0])), walls, spans)
+    for k, wall in enumerate(walls):
+        out[(out == k) & (_angle_to_rectangle(wall, light_mm, emitted) > reach)] = -1
+    return out
+
+
+def span_of(azimuth_deg: np.ndarray, walls: list[Wall], spans: dict[str, tuple[float, float]]) -> np.ndarray:
+    """(n,) int: the wall whose span of u (``spans``) holds each azimuth (degrees), -1 for none."""
+    out = np.full(len(azimuth_deg), -1)
     for k, wall in enumerate(walls):
         lo, hi = spans[wall.name]
-        inside = np.mod(azimuth - lo, 360.0) < hi - lo
-        out[inside & (_angle_to_rectangle(wall, light_mm, emitted) <= reach)] = k
+        out[np.mod(azimuth_deg - lo, 360.0) < hi - lo] = k
     return out
+
+
+def exit_azimuth_deg(ph: raymap.Photons, radius_mm: float) -> np.ndarray:
+    """(n,) degrees: the azimuth at which each photon's ray in the glass meets the plain
+    outer cylinder of ``radius_mm`` about the lamp's axis."""
+    o, d = ph.origin[:, :2], ph.direction[:, :2]
+    a, b = np.maximum(np.sum(d * d, axis=1), 1e-300), np.sum(o * d, axis=1)  # a photon going straight up stays
+    t = (-b + np.sqrt(np.maximum(b * b - a * (np.sum(o * o, axis=1) - radius_mm**2), 0.0))) / a
+    return np.degrees(np.arctan2(o[:, 1] + t * d[:, 1], o[:, 0] + t * d[:, 0]))
 
 
 def max_deflection_deg(ior: float, max_tilt_deg: float) -> float:

@@ -63,3 +63,16 @@ def test_the_led_design_table_sets_each_point_light_design_beside_its_led_design
     # Only the pairs whose both builds exist: text and camera have none here.
     assert rows == ["| apple | 0.970 / 0.61-0.64 | 0.991 / 0.61-0.64 | — | — | 0.960 / 0.45 | 0.960 / 0.45 "
                     "|"]
+
+
+def test_a_case_without_a_build_here_keeps_the_row_the_page_has(tmp_path, monkeypatch):
+    """Rerunning a few cases rewrites their rows and leaves the others' as they were."""
+    results = _load()
+    monkeypatch.setattr(results, "BUILDS", tmp_path / "builds")
+    _fake_build(tmp_path / "builds" / "star", 0.9912)
+    page = tmp_path / "page.md"
+    page.write_text("<!-- results:reflections -->\n| case | head |\n|---|---|\n| apple | kept as it was |\n"
+                    "| star | an old star |\n| gone | no such case |\n<!-- /results:reflections -->\n")
+    results.write_tables([page])
+    rows = [line for line in page.read_text().splitlines() if line.startswith("| ") and "---" not in line]
+    assert rows[1:] == ["| apple | kept as it was |", "| star | 0.61-0.64 | 0.68 | 0.90-0.94 | 0.94 | 0.021 | 7.9 % |"]

@@ -244,6 +244,49 @@ def test_the_passes_keep_the_lens_whose_light_lands_closest(tiny_design, inner_l
     np.testing.assert_allclose(heights, 4.0)                   # the fourth fit's lens: each fit adds 1 mm
 
 
+def test_light_that_crosses_a_sectors_edge_inside_the_glass_gets_no_goal(tiny_design, inner_layer, monkeypatch):
+    """A post's light leaves its faces 3 mm off the axis, so a little of what one sector
+    emits reaches the outer surface in the next sector, where the surface serves that
+    wall's own light: the transport gives it no goal."""
+    walls, targets, opt = _disc_lamp(tiny_design)
+    # Off-centre images turn the sectors: their edges no longer lie half way between the
+    # faces, whose light then leaves the glass nearer to their own centre.
+    targets = [_left_heavy(t.shape) for t in targets]
+    post = Source(room.light_position(tiny_design), "post", 1.5, facing_deg=(0.0, 90.0, 180.0), offset_mm=3.0,
+                  fin_radius_mm=11.0, fin_height_mm=50.0)
+    seen = {}
+
+    class Seen(Exception):
+        pass
+
+    def fitter(self, cyl, tessellation, ph, walls, wall_of, *rest):
+        seen.update(ph=ph, wall_of=wall_of.copy())
+        raise Seen
+
+    monkeypatch.setattr(raymap.RayMap, "__init__", fitter)
+    with pytest.raises(Seen):
+        transport.design(surface.Cylinder(45.0, 90.0, creased=True), walls, targets, *inner_layer, post, 1.5,
+                         PRINTED, opt, log=lambda m: None)
+    ph, wall_of = seen["ph"], seen["wall_of"]
+    exit_deg = transport.exit_azimuth_deg(ph, 45.0)
+    # Where the ray in the glass meets the plain cylinder: on the ray, 45 mm from the axis.
+    to_exit = 45.0 * np.stack([np.cos(np.radians(exit_deg)), np.sin(np.radians(exit_deg))], 1) - ph.origin[:, :2]
+    side = np.linalg.norm(ph.direction[:, :2], axis=1) > 0.1
+    a, b = to_exit[side], ph.direction[side, :2]
+    assert np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).max() < 1e-6
+    assert np.all(np.sum(to_exit[side] * ph.direction[side, :2], axis=1) > 0)
+    spans = transport.sector_spans(walls, targets, post.position)
+    emitted_deg = np.degrees(np.arctan2(ph.emitted[:, 1], ph.emitted[:, 0]))
+    crossing = (transport.span_of(emitted_deg, walls, spans) != transport.span_of(exit_deg, walls, spans)) \
+        & (ph.weight > 0)
+    assert 0.005 < crossing.mean() < 0.05
+    by_emission = transport.sector_of(ph.emitted, walls, spans, post.position, 1.5, PRINTED.max_slope_deg)
+    assert np.mean(by_emission[crossing] >= 0) > 0.1    # light a wall's sector would otherwise claim
+    given = wall_of >= 0
+    assert not np.any(given & crossing)
+    assert np.all(transport.span_of(exit_deg[given], walls, spans) == wall_of[given])
+
+
 @pytest.mark.parametrize("preferred_mm, steep_mm, steepest, chosen", [
     (500.0, 300.0, 45.0, 45.0),   # the first fit lands the light far off, the steeper one closer
     (500.0, 480.0, 45.0, 30.0),   # the steeper one barely closer: the gentle slopes stay
