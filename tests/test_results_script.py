@@ -4,6 +4,8 @@ import importlib.util
 import json
 import sys
 
+import pytest
+
 from tests.helpers import ROOT
 
 
@@ -12,6 +14,14 @@ def _load():
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # its dataclasses look their module up
     spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture
+def results(tmp_path, monkeypatch):
+    """examples/results.py, its builds under tmp_path/builds."""
+    module = _load()
+    monkeypatch.setattr(module, "BUILDS", tmp_path / "builds")
     return module
 
 
@@ -29,9 +39,7 @@ def _fake_build(folder, led_r):
     (folder / "make_seconds.txt").write_text("270.0\n")
 
 
-def test_the_tables_are_rewritten_between_their_markers_and_nowhere_else(tmp_path, monkeypatch):
-    results = _load()
-    monkeypatch.setattr(results, "BUILDS", tmp_path / "builds")
+def test_the_tables_are_rewritten_between_their_markers_and_nowhere_else(results, tmp_path):
     _fake_build(tmp_path / "builds" / "apple", 0.9912)
     page = tmp_path / "page.md"
     page.write_text("before\n<!-- results:summary -->\nold row\n<!-- /results:summary -->\nafter\n"
@@ -51,9 +59,7 @@ def test_the_tables_are_rewritten_between_their_markers_and_nowhere_else(tmp_pat
     assert page.read_text() == text
 
 
-def test_the_led_design_table_sets_each_point_light_design_beside_its_led_design(tmp_path, monkeypatch):
-    results = _load()
-    monkeypatch.setattr(results, "BUILDS", tmp_path / "builds")
+def test_the_led_design_table_sets_each_point_light_design_beside_its_led_design(results, tmp_path):
     _fake_build(tmp_path / "builds" / "apple", 0.9912)
     _fake_build(tmp_path / "builds" / "apple_point_design", 0.9701)
     page = tmp_path / "page.md"
@@ -65,10 +71,8 @@ def test_the_led_design_table_sets_each_point_light_design_beside_its_led_design
                     "|"]
 
 
-def test_a_case_without_a_build_here_keeps_the_row_the_page_has(tmp_path, monkeypatch):
+def test_a_case_without_a_build_here_keeps_the_row_the_page_has(results, tmp_path):
     """Rerunning a few cases rewrites their rows and leaves the others' as they were."""
-    results = _load()
-    monkeypatch.setattr(results, "BUILDS", tmp_path / "builds")
     _fake_build(tmp_path / "builds" / "star", 0.9912)
     page = tmp_path / "page.md"
     page.write_text("<!-- results:reflections -->\n| case | head |\n|---|---|\n| apple | kept as it was |\n"
