@@ -239,8 +239,8 @@ def write_tables(paths=PAGES) -> None:
     for path in paths:
         text = path.read_text()
         for name, head in TABLES.items():
-            block = re.search(rf"<!-- results:{name} -->\n(.*?)<!-- /results:{name} -->", text, flags=re.S)
-            kept = {line.split("|")[1].strip(): line for line in (block.group(1) if block else "").splitlines()
+            on_page = re.search(rf"<!-- results:{name} -->\n(.*?)<!-- /results:{name} -->", text, flags=re.S)
+            kept = {line.split("|")[1].strip(): line for line in (on_page.group(1) if on_page else "").splitlines()
                     if line.startswith("| ")}
             rows = [row for row in (_row(c, name) or kept.get(c.before if name == "led_design" else c.name)
                                     for c in CASES if name in c.tables) if row]

@@ -133,18 +133,14 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     ph = raymap.stratified_photons(inner_vertices, inner_faces, source, ior, n_azimuth, n_elevation, opt.seed)
     light_mm = source.position
     spans = sector_spans(walls, targets, light_mm)
-    # A post's light leaves its faces off the axis: past an off-centre sector's edge, some meets
-    # the outer surface in the next sector; with goals, it asked the crease to light two walls.
-    emitted_deg = np.degrees(np.arctan2(ph.emitted[:, 1], ph.emitted[:, 0]))
-    crossing = span_of(exit_azimuth_deg(ph, cyl.radius_mm), walls, spans) != span_of(emitted_deg, walls, spans)
+    exit_deg = exit_azimuth_deg(ph, cyl.radius_mm)
     coarse = coarse_grid(grid)
     first_steps = 2 * iterations if coarse != grid else iterations
 
     def first_fit(limits: Limits, on_step) -> dict:
         """Goals from the source and the first fit (on the coarse grid if there is one)
         under ``limits``: what the passes start from."""
-        wall_of = sector_of(ph.emitted, walls, spans, light_mm, ior, limits.max_slope_deg)
-        wall_of[crossing] = -1
+        wall_of = sector_of(ph.emitted, walls, spans, light_mm, ior, limits.max_slope_deg, exit_deg)
         fitter = raymap.RayMap(cyl, opt.tessellation, ph, walls, wall_of, ior, limits, opt.smoothness)
         plain = fitter.trace(np.zeros(coarse))
         lit = np.zeros(len(wall_of), bool)
@@ -261,13 +257,17 @@ def _tangent(u_deg: float) -> np.ndarray:
     return np.array([-np.sin(u), np.cos(u), 0.0])
 
 
-def sector_of(emitted: np.ndarray, walls: list[Wall], spans: dict[str, tuple[float, float]],
-              light_mm: np.ndarray, ior: float, max_tilt_deg: float) -> np.ndarray:
+def sector_of(emitted: np.ndarray, walls: list[Wall], spans: dict[str, tuple[float, float]], light_mm: np.ndarray,
+              ior: float, max_tilt_deg: float, exit_deg: np.ndarray | None = None) -> np.ndarray:
     """(n,) int: the wall whose sector (``spans``) each photon leaves through (by emission
-    azimuth), or -1 where no wall's sector holds it or the photon cannot reach its wall
-    with a makeable slope."""
+    azimuth), or -1 where no wall's sector holds it, the photon cannot reach its wall with
+    a makeable slope, or (given ``exit_azimuth_deg``) it meets the outer surface in another."""
     reach = np.radians(REACH_MARGIN * max_deflection_deg(ior, max_tilt_deg))
     out = span_of(np.degrees(np.arctan2(emitted[:, 1], emitted[:, 0])), walls, spans)
+    if exit_deg is not None:
+        # A post's light leaves its faces off the axis: past an off-centre sector's edge some meets
+        # the outer surface in the next sector; with goals, it asked the crease to light two walls.
+        out[span_of(exit_deg, walls, spans) != out] = -1
     for k, wall in enumerate(walls):
         out[(out == k) & (_angle_to_rectangle(wall, light_mm, emitted) > reach)] = -1
     return out
