@@ -37,6 +37,7 @@ LOOK_AHEAD_MM = 400.0    # the person looks at a point this far beyond the lamp,
 ROOM_FOV_DEG = 84.0      # horizontal: the front wall and both side walls' pictures
 ROOM_ASPECT = 9 / 16
 TABLE_RADIUS_MM = 300.0  # the side table the lamp stands on
+PAINT_ALBEDO = 0.04      # matt black paint, as the lens's painted faces are drawn
 
 
 def _rect(mi, origin: np.ndarray, right: np.ndarray, down: np.ndarray):
@@ -48,10 +49,10 @@ def _rect(mi, origin: np.ndarray, right: np.ndarray, down: np.ndarray):
     return placed(mi, origin + (right + down) / 2, right / 2, -down / 2)
 
 
-def _ply(vertices: np.ndarray, faces: np.ndarray, folder: Path) -> str:
+def _ply(vertices: np.ndarray, faces: np.ndarray, folder: Path, name: str = "lens") -> str:
     import trimesh
 
-    path = folder / "lens.ply"
+    path = folder / f"{name}.ply"
     trimesh.Trimesh(vertices, faces, process=False).export(path)
     return str(path)
 
@@ -79,10 +80,11 @@ def _visible(led: Source) -> Source:
     return dataclasses.replace(led, radius_mm=max(led.radius_mm, VISIBLE_LED_RADIUS_MM))
 
 
-def _scene(mi, folder: Path, vertices: np.ndarray, faces: np.ndarray, ior: float, led: dict,
+def _scene(mi, folder: Path, vertices: np.ndarray, faces: np.ndarray, painted: np.ndarray, ior: float, led: dict,
            walls: list[Wall], light: list[np.ndarray], floor_z: float) -> dict:
-    """The room: the lens as glass, the glowing LED, each wall lit by its traced ``light``
-    (per wall of ``room_walls``: (rows, cols) flux), the floor and the lamp's table."""
+    """The room: the lens as glass (its ``painted`` facets matt black), the glowing LED,
+    each wall lit by its traced ``light`` (per wall of ``room_walls``: (rows, cols) flux),
+    the floor and the lamp's table."""
     from .mitsuba_reference import lights as led_emitters
 
     top = max(float(np.percentile(img[img > 0], 99.5)) if (img > 0).any() else 0.0 for img in light) or 1.0
@@ -91,11 +93,14 @@ def _scene(mi, folder: Path, vertices: np.ndarray, faces: np.ndarray, ior: float
     scene = {"type": "scene",
              "sky": {"type": "constant", "radiance": {"type": "spectrum", "value": AMBIENT}},
              **led_emitters(mi, _visible(Source.from_json(led)), LED_RADIANCE),
-             "lens": {"type": "ply", "filename": _ply(vertices, faces, folder), "face_normals": True,
+             "lens": {"type": "ply", "filename": _ply(vertices, faces[~painted], folder), "face_normals": True,
                       "bsdf": {"type": "dielectric", "int_ior": float(ior), "ext_ior": 1.0}},
              "floor": {"type": "rectangle", "bsdf": grey,
                        "to_world": _rect(mi, np.array([-reach, reach, floor_z]), np.array([2 * reach, 0, 0]),
                                          np.array([0, -2 * reach, 0]))}}
+    if painted.any():
+        scene["lens_paint"] = {"type": "ply", "filename": _ply(vertices, faces[painted], folder, "paint"),
+                               "face_normals": True, "bsdf": {"type": "diffuse", "reflectance": PAINT_ALBEDO}}
     if floor_z < -1.0:  # the lamp stands on a round side table with one leg
         top_z = -0.5
         scene["table_top"] = {"type": "disk", "bsdf": grey,
@@ -129,12 +134,13 @@ def _denoised(mi, scene: dict, camera: dict) -> np.ndarray:
     return np.asarray(pyoidn.denoise(colour, albedo, normal, hdr=True)[..., 0], np.float64)
 
 
-def room_pictures(vertices: np.ndarray, faces: np.ndarray, ior: float, led: dict, walls: list[Wall],
-                  light: list[np.ndarray], floor_z: float, width_px: int, spp: int,
+def room_pictures(vertices: np.ndarray, faces: np.ndarray, painted: np.ndarray, ior: float, led: dict,
+                  walls: list[Wall], light: list[np.ndarray], floor_z: float, width_px: int, spp: int,
                   seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """The lamp in its room at a person's eye height, and the lens close up as glass.
 
-    vertices (n, 3) float64 mm, faces (m, 3): the lens solid in the STL frame; ``led``:
+    vertices (n, 3) float64 mm, faces (m, 3): the lens solid in the STL frame, its
+    ``painted`` facets ((m,) bool, ``paint``) matt black; ``led``:
     design.json's light (position, radius, length); ``walls``: ``room_walls`` of the
     design's walls, ``light`` their traced flux (rows, cols) each; ``floor_z`` mm.
     Returns ((rows, width_px) room, a 4:3 close view 5/8 as wide), float64 linear
@@ -147,7 +153,7 @@ def room_pictures(vertices: np.ndarray, faces: np.ndarray, ior: float, led: dict
     height = float(vertices[:, 2].max())
     rows = max(1, int(round(width_px * ROOM_ASPECT)))
     with tempfile.TemporaryDirectory() as tmp:
-        scene = _scene(mi, Path(tmp), vertices, faces, ior, led, walls, light, floor_z)
+        scene = _scene(mi, Path(tmp), vertices, faces, painted, ior, led, walls, light, floor_z)
         eye = np.array([0.0, -EYE_BEHIND_MM, floor_z + EYE_HEIGHT_MM]) if floor_z < -1.0 else \
             np.array([0.0, -EYE_BEHIND_MM, position[2] + EYE_HEIGHT_MM / 2])
         look = [0.0, LOOK_AHEAD_MM, position[2] - 50.0]

@@ -71,8 +71,26 @@ def _fins(led: Led) -> str:
             f"back across the hollow.")
 
 
-def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: dict) -> list[str]:
-    """Plain-text paragraphs: orientation, the LED, finishing, the polishing allowance."""
+def paint(paint_json: dict) -> str:
+    """The paragraph on painting the faces that light no wall (design.json's lens
+    ``black_paint`` and ``painted_u_deg``), or nothing."""
+    choice = paint_json.get("black_paint", "none")
+    if choice == "none":
+        return ""
+    back = paint_json.get("painted_u_deg")
+    where = "the flat top and the base"
+    if back:
+        where += (f", and the outer surface from u {back[0]:g} to {back[1] % 360:g} deg (the back, around -y, "
+                  f"between the side walls' parts)")
+    return (f"After finishing, paint {where} matt black: mask the rest with tape and use a matt black paint or "
+            f"paint marker. They light no wall; painted, they swallow the light the lens reflects inside itself, "
+            f"which would otherwise lie as a faint haze over the pictures. verify traced the lens painted so.")
+
+
+def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: dict,
+           paint_json: dict | None = None) -> list[str]:
+    """Plain-text paragraphs: orientation, the LED, finishing, the black paint, the
+    polishing allowance."""
     allowance = study["allowance_mm"] * 1000
     bound = "at least " if study["allowance_at_least"] else ""
     error = study["profile_error_mm"] * 1000
@@ -83,6 +101,7 @@ def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: d
          f"a stalk, {_MOUNTED[led.shape]} {light_mm[2]:g} mm above the base on the axis; the design assumes "
          f"{_SHINES[led.shape]}, with the size of its profile ({led.name})." + _fins(led)),
         _FINISH[fab.process],
+        *[p for p in (paint(paint_json or {}),) if p],
         (f"Polishing allowance: uneven removal of up to {bound}{allowance:.0f} um (peak, over patches of "
          f"~{study['correlation_mm']:g} mm) keeps every wall's Pearson r within {study['r_drop']} of the design. "
          f"This profile's surface error, {error:.0f} um, costs r {study['profile_error_drop']:.3f}"

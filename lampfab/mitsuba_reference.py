@@ -39,11 +39,23 @@ MAX_DEPTH = 12
 POINT_DISC_RADIUS_MM = 0.01
 
 
-def _lens(mi, vertices: np.ndarray, faces: np.ndarray, ior: float):
-    """The lens as a Mitsuba mesh of flat facets (no vertex normals) of glass."""
+def _lens(mi, vertices: np.ndarray, faces: np.ndarray, ior: float, painted: np.ndarray | None = None) -> dict:
+    """The lens as Mitsuba meshes of flat facets (no vertex normals), by scene key: its
+    glass, and its ``painted`` facets ((m,) bool) as a black diffuse mesh, which ends
+    the light that meets it from either side."""
+    painted = np.zeros(len(faces), bool) if painted is None else painted
+    black = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}}
+    out = {"lens": _mesh(mi, "lens", vertices, faces[~painted],
+                         {"type": "dielectric", "int_ior": float(ior), "ext_ior": 1.0})}
+    if painted.any():
+        out["lens_paint"] = _mesh(mi, "lens_paint", vertices, faces[painted], black)
+    return out
+
+
+def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf: dict):
     props = mi.Properties()
-    props["bsdf"] = mi.load_dict({"type": "dielectric", "int_ior": float(ior), "ext_ior": 1.0})
-    mesh = mi.Mesh("lens", len(vertices), len(faces), props=props, has_vertex_normals=False,
+    props["bsdf"] = mi.load_dict(bsdf)
+    mesh = mi.Mesh(name, len(vertices), len(faces), props=props, has_vertex_normals=False,
                    has_vertex_texcoords=False)
     params = mi.traverse(mesh)
     params["vertex_positions"] = mi.Float(np.ascontiguousarray(vertices, np.float32).ravel())
@@ -131,20 +143,22 @@ def wall_camera(mi, wall: Wall, vertices: np.ndarray, shape: tuple[int, int], sp
 
 
 def render(vertices: np.ndarray, faces: np.ndarray, ior: float, source: Source, walls: list[Wall],
-           shapes: list[tuple[int, int]], photons: int, seed: int) -> list[np.ndarray]:
+           shapes: list[tuple[int, int]], photons: int, seed: int, painted: np.ndarray | None = None
+           ) -> list[np.ndarray]:
     """Mitsuba's ptracer picture of each wall: (rows, cols) float64 per wall, proportional
     to its flux per pixel.  ``vertices`` (n, 3) mm and ``faces`` (m, 3): the closed lens
-    with outward normals; the LED as ``lights``'; about ``photons`` light paths per wall."""
+    with outward normals, its ``painted`` facets ((m,) bool) black; the LED as
+    ``lights``'; about ``photons`` light paths per wall."""
     from .mi_env import mitsuba
 
     mi = mitsuba()
-    lens = _lens(mi, vertices, faces, ior)
+    lens = _lens(mi, vertices, faces, ior, painted)
     images = []
     for k, (wall, shape) in enumerate(zip(walls, shapes)):
         spp = max(1, int(round(photons / (shape[0] * shape[1]))))
         scene = mi.load_dict({
             "type": "scene", "integrator": {"type": "ptracer", "max_depth": MAX_DEPTH, "hide_emitters": True},
-            "lens": lens, **lights(mi, source),
+            **lens, **lights(mi, source),
             "wall": {"type": "rectangle", "to_world": _rectangle(mi, wall),
                      "bsdf": {"type": "diffuse", "reflectance": 1.0}},
             "camera": wall_camera(mi, wall, vertices, shape, spp)})

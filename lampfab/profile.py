@@ -26,6 +26,7 @@ LENS_KINDS = ("cylinder", "panel")
 LOSSES = ("si_mse", "si_mse_ssim", "multiscale", "l1_joint", "l1_weighted")
 NUMPY_ONLY_LOSSES = ("si_mse_ssim", "multiscale")
 SCHEDULES = ("cyclic", "joint")
+PAINTS = ("none", "top_and_base", "top_base_and_back")  # lampfab.paint says what each paints
 
 
 def _spec(default, lo=None, hi=None, choices=None, doc=""):
@@ -52,6 +53,10 @@ class Lens:
                                         "a 45 degree cone roof to z 86 mm); with inner_mesh empty")
     inner_scale: float = _spec(1.0, 1e-4, 1e4, doc="scale applied to the inner mesh (Blender metres -> 1000)")
     max_offset_mm: float = _spec(20.0, 0.1, 100.0, doc="bound on the radial heightmap, both ways")
+    black_paint: str = _spec("top_base_and_back", choices=PAINTS,
+                             doc="matt black paint on faces that light no wall, where it swallows light reflected "
+                                 "inside the lens: none, the flat top and base, or those and the outer surface "
+                                 "where no wall's sector lies (none with a floor image)")
 
 
 @dataclass(frozen=True)

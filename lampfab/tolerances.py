@@ -58,3 +58,10 @@ ANGLE_TOL_DEG = 1e-6
 # matches the optimizer's own final render"); below it the file is not the lens that
 # was optimized (a wrong export, or a tracer disagreement worth a look).
 OPTIMIZER_MATCH_R = 0.98
+
+# A lens's top and base (``paint``): facets within this tilt of horizontal, and this
+# close to z = 0 or to the lens's height.  The outer surface tilts 68° at most (the
+# steepest slope limit), and the flat faces are exact planes, so any value from a
+# thousandth of a degree to 20° picks the same facets; 8° leaves room both ways.
+FLAT_FACE_DEG = 8.0
+FLAT_FACE_HEIGHT_MM = 1e-3

@@ -27,11 +27,14 @@ NOWHERE_MM = 1e7  # far below the room, heading down: a photon sent from there m
 
 
 class MeshScene:
-    """A Mitsuba scene holding one triangle mesh, for ray intersection only."""
+    """A Mitsuba scene holding one triangle mesh, for ray intersection only.
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+    ``painted`` (m,) bool: the facets painted matt black (``paint``), where light ends."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, painted: np.ndarray | None = None):
         mi = mitsuba()
         self.mi = mi
+        self.painted = None if painted is None or not painted.any() else mi.Bool(np.asarray(painted, bool))
         self.mesh = mi.Mesh("lens", len(vertices), len(faces), has_vertex_normals=False,
                             has_vertex_texcoords=False)
         params = mi.traverse(self.mesh)
@@ -252,7 +255,8 @@ def _concat(cls, a, b):
     return cls(*(dr.concat([x, y]) for x, y in ((a.x, b.x), (a.y, b.y), (a.z, b.z))))
 
 
-def propagate(mi, scene, o, d, ior, seed: int, max_bounces: int, on_escape, place=None, stops=None) -> int:
+def propagate(mi, scene, o, d, ior, seed: int, max_bounces: int, on_escape, place=None, stops=None,
+              painted=None) -> int:
     """Follow photons through the lens until they leave it.
 
     One wavefront per interface, compacted so finished photons cost nothing.
@@ -265,8 +269,9 @@ def propagate(mi, scene, o, d, ior, seed: int, max_bounces: int, on_escape, plac
     where it was first reflected (a Fresnel ghost): ``place(points, outward normals)``
     -> Dr.Jit UInt32 codes from 1, or 1 without ``place``.  ``stops(o, d, t_max)`` ->
     Dr.Jit Bool: the photons something opaque stops before their next interface
-    (``fins.stopper``); they end there.  Returns how many are still inside after
-    ``max_bounces`` interfaces.
+    (``fins.stopper``); they end there, as do those whose next facet is ``painted``
+    (a Dr.Jit Bool per facet: ``MeshScene.painted``).  Returns how many are still
+    inside after ``max_bounces`` interfaces.
     """
     import drjit as dr
 
@@ -281,6 +286,8 @@ def propagate(mi, scene, o, d, ior, seed: int, max_bounces: int, on_escape, plac
         if stops is not None:
             ended = stops(o, d, si.t)
             left, inside = left & ~ended, inside & ~ended
+        if painted is not None:
+            inside &= ~dr.gather(mi.Bool, painted, si.prim_index, valid)
         # One kernel for the intersection; gathers below would otherwise re-run it.
         dr.eval(left, inside, si.p, si.n, o, d)
         gone = dr.compress(left)
@@ -423,7 +430,7 @@ def render_walls(scene: MeshScene, source, ior, walls: list[Wall], shapes: list[
         traced += dr.width(d)
         traced_by_parity[batch % 2] += dr.width(d)
         trapped += propagate(mi, scene.scene, o, d, ior, batch_seed, max_bounces, land, reflection_place,
-                             fins.stopper(mi, source))
+                             fins.stopper(mi, source), scene.painted)
 
     def per_wall(c):
         return [img.reshape(s) for img, s in zip(np.split(c / traced, np.cumsum(sizes)[:-1]), shapes)]

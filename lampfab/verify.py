@@ -11,7 +11,7 @@ with its real spread.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +43,7 @@ class Loaded:
     walls: list[room.Wall]
     vertices: np.ndarray  # (n, 3) float64 mm, the STL read back
     faces: np.ndarray     # (m, 3) int
+    painted: np.ndarray   # (m,) bool, the facets painted black (``paint``)
     scene: object         # trace.MeshScene
 
     def target(self, k: int, shape: tuple[int, int]) -> np.ndarray:
@@ -53,14 +54,17 @@ class Loaded:
 
 
 def load(design_path) -> Loaded:
-    from . import trace
+    from . import paint, trace
     from .export import stl
 
     design_path = Path(design_path)
     design = read_design(design_path)
-    vertices, faces = stl.read_stl(design_path.parent / design["lens"]["stl"])
+    lens = design["lens"]
+    vertices, faces = stl.read_stl(design_path.parent / lens["stl"])
+    painted = paint.painted_faces(vertices, faces, lens.get("black_paint", "none"), float(vertices[:, 2].max()),
+                                  lens.get("painted_u_deg"))
     return Loaded(design, design_path.parent, [room.Wall.from_json(w) for w in design["walls"]],
-                  vertices, faces, trace.MeshScene(vertices, faces))
+                  vertices, faces, painted, trace.MeshScene(vertices, faces, painted))
 
 
 def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bounces: int,
@@ -235,7 +239,7 @@ def _mitsuba(loaded: Loaded, shapes: list, photons: int, seed: int) -> dict:
     out = {"photons": photons}
     for name, source in (("point", led.point()), ("led", led)):
         out[name] = mitsuba_reference.render(loaded.vertices, loaded.faces, ior, source, loaded.walls, shapes,
-                                             photons, seed)
+                                             photons, seed, loaded.painted)
     out["seconds"] = time.time() - t0
     return out
 
@@ -245,7 +249,7 @@ def room_light(design_path, walls: list[room.Wall], width_px: int, photons: int,
     STL onto ``walls``: per wall (rows, cols) flux, ``width_px`` wide (the room picture's
     walls)."""
     loaded = load(design_path)
-    loaded = Loaded(loaded.design, loaded.base, walls, loaded.vertices, loaded.faces, loaded.scene)
+    loaded = replace(loaded, walls=walls)
     images, _ = render_design(loaded, width_px, photons, seed, 8)
     return images
 

@@ -79,3 +79,15 @@ def test_guidance_names_the_sides_finishing_and_allowance():
     sla = " ".join(guidance.advice(load_fabrication("sla_resin"), load_led("star3535"), ["front"], np.zeros(3),
                                    {**study, "profile_error_drop": 0.03}))
     assert "clear coat" in sla and "finish more carefully" in sla and "witness" not in sla
+
+
+def test_guidance_says_which_faces_to_paint_black():
+    study = {"allowance_mm": 0.05, "allowance_at_least": False, "profile_error_mm": 0.02,
+             "profile_error_drop": 0.004, "r_drop": 0.02, "correlation_mm": 5.0}
+    args = (load_fabrication("sla_resin"), load_led("post3535"), ["front", "left", "right"], np.zeros(3), study)
+    back = " ".join(guidance.advice(*args, {"black_paint": "top_base_and_back", "painted_u_deg": [225.0, 309.36]}))
+    assert "paint the flat top and the base, and the outer surface from u 225 to 309.36 deg" in back
+    assert "matt black" in back
+    ends = " ".join(guidance.advice(*args, {"black_paint": "top_base_and_back", "painted_u_deg": None}))
+    assert "paint the flat top and the base matt black" in ends and "outer surface from u" not in ends
+    assert "matt black paint" not in " ".join(guidance.advice(*args, {"black_paint": "none"}))

@@ -1,6 +1,7 @@
 """``lens.glb``: the lens for a beauty render in Blender (or any glTF viewer).
 
-A binary glTF 2.0 file with one mesh and a glass material: clear base colour, no
+A binary glTF 2.0 file with one mesh: its glass, and the faces to be painted black
+(``paint``) as a second primitive of matt black.  The glass is a clear base colour, no
 metal, no roughness, full transmission (KHR_materials_transmission), the design's
 refractive index (KHR_materials_ior) and a thick volume (KHR_materials_volume), which
 Blender's importer turns into a Principled BSDF glass.  glTF is in metres with Y up:
@@ -29,38 +30,46 @@ def to_gltf_frame(vertices_mm: np.ndarray) -> np.ndarray:
     return np.stack([v[:, 0], v[:, 2], -v[:, 1]], axis=1).astype(np.float32)
 
 
-def write_glb(path, vertices_mm: np.ndarray, faces: np.ndarray, ior: float, name: str = "lens") -> int:
-    """Write the mesh ((n, 3) float64 mm, (m, 3) int) as ``path``; returns its size in bytes."""
+def write_glb(path, vertices_mm: np.ndarray, faces: np.ndarray, ior: float, painted: np.ndarray | None = None,
+              name: str = "lens") -> int:
+    """Write the mesh ((n, 3) float64 mm, (m, 3) int) as ``path``, its ``painted`` facets
+    ((m,) bool, ``paint``) as a second primitive of matt black; returns the size in bytes."""
     positions = to_gltf_frame(vertices_mm)
-    indices = np.ascontiguousarray(faces, dtype=np.uint32).ravel()
-    pos_bytes, idx_bytes = positions.tobytes(), indices.tobytes()
-    pad = (-len(pos_bytes)) % 4
-    binary = pos_bytes + b"\0" * pad + idx_bytes
-    binary += b"\0" * ((-len(binary)) % 4)
+    painted = np.zeros(len(faces), bool) if painted is None else painted
+    parts = [faces[~painted]] + ([faces[painted]] if painted.any() else [])
+    pos_bytes = positions.tobytes()
+    binary = pos_bytes + b"\0" * ((-len(pos_bytes)) % 4)
+    views = [{"buffer": 0, "byteOffset": 0, "byteLength": len(pos_bytes), "target": _ARRAY_BUFFER}]
+    accessors = [{"bufferView": 0, "componentType": _FLOAT, "count": len(positions), "type": "VEC3",
+                  "min": positions.min(0).tolist(), "max": positions.max(0).tolist()}]
+    for part in parts:
+        indices = np.ascontiguousarray(part, dtype=np.uint32).ravel()
+        views.append({"buffer": 0, "byteOffset": len(binary), "byteLength": indices.nbytes,
+                      "target": _ELEMENT_ARRAY_BUFFER})
+        accessors.append({"bufferView": len(views) - 1, "componentType": _UINT, "count": len(indices),
+                          "type": "SCALAR", "min": [int(indices.min())], "max": [int(indices.max())]})
+        binary += indices.tobytes()
     size = float(np.linalg.norm(positions.max(0) - positions.min(0)))
+    glass = {"name": "lampfab glass",
+             "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0,
+                                      "roughnessFactor": 0.0},
+             "doubleSided": False,
+             "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                            "KHR_materials_ior": {"ior": float(ior)},
+                            "KHR_materials_volume": {"thicknessFactor": size}}}
+    black = {"name": "lampfab matt black paint",
+             "pbrMetallicRoughness": {"baseColorFactor": [0.02, 0.02, 0.02, 1.0], "metallicFactor": 0.0,
+                                      "roughnessFactor": 0.9}}
+    primitives = [{"attributes": {"POSITION": 0}, "indices": k + 1, "material": k} for k in range(len(parts))]
     doc = {
         "asset": {"version": "2.0", "generator": "lampfab"},
         "extensionsUsed": _EXTENSIONS,
         "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0, "name": name}],
-        "meshes": [{"name": name, "primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]}],
-        "materials": [{
-            "name": "lampfab glass",
-            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0,
-                                     "roughnessFactor": 0.0},
-            "doubleSided": False,
-            "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
-                           "KHR_materials_ior": {"ior": float(ior)},
-                           "KHR_materials_volume": {"thicknessFactor": size}}}],
+        "meshes": [{"name": name, "primitives": primitives}],
+        "materials": [glass, black][:len(parts)],
         "buffers": [{"byteLength": len(binary)}],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": len(pos_bytes), "target": _ARRAY_BUFFER},
-            {"buffer": 0, "byteOffset": len(pos_bytes) + pad, "byteLength": len(idx_bytes),
-             "target": _ELEMENT_ARRAY_BUFFER}],
-        "accessors": [
-            {"bufferView": 0, "componentType": _FLOAT, "count": len(positions), "type": "VEC3",
-             "min": positions.min(0).tolist(), "max": positions.max(0).tolist()},
-            {"bufferView": 1, "componentType": _UINT, "count": len(indices), "type": "SCALAR",
-             "min": [int(indices.min())], "max": [int(indices.max())]}],
+        "bufferViews": views,
+        "accessors": accessors,
     }
     text = json.dumps(doc, separators=(",", ":")).encode()
     text += b" " * ((-len(text)) % 4)

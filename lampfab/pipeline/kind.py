@@ -61,6 +61,11 @@ class LensKind(ABC):
     def light_json(self, build) -> dict:
         """design.json's ``light``."""
 
+    def paint_json(self, build) -> dict:
+        """What design.json's ``lens`` says is painted black (``paint``): nothing, unless
+        the kind paints."""
+        return {"black_paint": "none"}
+
     @abstractmethod
     def finishing(self, build) -> dict:
         """verify.json's tolerance study and finishing advice ({} where there are none)."""
@@ -169,6 +174,18 @@ class Lamp(LensKind):
                 "fin_radius_mm": source.fin_radius_mm, "fin_height_mm": source.fin_height_mm,
                 "part": led.part, "flux_lm": led.flux_lm}
 
+    def paint_json(self, build) -> dict:
+        """The profile's black paint, and the arc of u (deg) of the outer surface that
+        lights no wall where it paints there: init's sectors (each wall's own, as the
+        design shifted them), or the walls' centred sectors for a first design without."""
+        from .. import paint
+
+        choice = build.design.lens.black_paint
+        init = build.stage_report("init") or {}
+        sectors = init.get("figures", {}).get("sectors_deg") or {w.name: w.sector_deg() for w in build.walls}
+        back = paint.free_span_deg(sectors) if choice == "top_base_and_back" else None
+        return {"black_paint": choice, "painted_u_deg": None if back is None else [round(a, 2) for a in back]}
+
     def finishing(self, build) -> dict:
         """The tolerance study and the post-processing guidance (``guidance``)."""
         from .. import guidance, tolerance_study
@@ -187,7 +204,8 @@ class Lamp(LensKind):
                      f"{study['allowance_mm'] * 1000:.0f} µm; the profile's {fab.surface_error_mm * 1000:.0f} µm "
                      f"costs r {study['profile_error_drop']:.3f}")
         return {"tolerance": study,
-                "guidance": guidance.advice(fab, build.led, [w.name for w in build.walls], build.light, study)}
+                "guidance": guidance.advice(fab, build.led, [w.name for w in build.walls], build.light, study,
+                                            self.paint_json(build))}
 
     def report_light(self, build, design: dict) -> dict:
         return design["light"]

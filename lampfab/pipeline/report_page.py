@@ -3,7 +3,7 @@ renders and the page's own pictures (``report`` writes the HTML)."""
 
 from __future__ import annotations
 
-from .. import artifacts, room
+from .. import artifacts
 from .build import Build
 
 _NEXT_STEPS_BLENDER = (
@@ -17,12 +17,11 @@ def pictures(build: Build) -> dict:
     as a matte object, the unrolled heightmap.  Returns their paths by name (room,
     closeup, lens, heightmap)."""
     from .. import beauty, verify
-    from ..export import stl
 
     v = build.design.verify
-    design = artifacts.read_json(build.design_file)
-    vertices, faces = stl.read_stl(build.lens_stl)
-    walls = [room.Wall.from_json(w) for w in design["walls"]]
+    loaded = verify.load(build.design_file)
+    design, vertices, faces = loaded.design, loaded.vertices, loaded.faces
+    walls = loaded.walls
     paths = {name: build.report_picture(name) for name in ("room", "closeup", "lens", "heightmap")}
     around = beauty.room_walls(walls)
     # A quarter of verify's photons: shown at the room picture's scale, the walls' photon
@@ -30,7 +29,8 @@ def pictures(build: Build) -> dict:
     light = verify.room_light(build.design_file, around, beauty.ROOM_WALL_SCALE * v.image_px, v.photons // 4,
                               build.design.optimize.seed + 13)
     floor_z = float(build.light[2]) - build.design.room.floor_depth_mm
-    room_view, close = beauty.room_pictures(vertices, faces, build.fab.ior, build.kind.report_light(build, design),
+    room_view, close = beauty.room_pictures(vertices, faces, loaded.painted, build.fab.ior,
+                                            build.kind.report_light(build, design),
                                             around, light, floor_z, v.scene_px, v.scene_spp,
                                             build.design.optimize.seed)
     artifacts.write_png(paths["room"], room_view, normalize=False)

@@ -200,6 +200,7 @@ def test_text_lamp_end_to_end(text_lamp):
 def test_optimization_gif_and_lens_glb(text_lamp, tiny_design):
     import trimesh
 
+    from lampfab import paint
     from lampfab.export import stl
 
     out, _ = text_lamp
@@ -208,16 +209,25 @@ def test_optimization_gif_and_lens_glb(text_lamp, tiny_design):
     iterations = tiny_design.optimize.iterations
     assert frames == iterations + 1  # step 0 and each step (tiny previews every step)
     scene = trimesh.load(out / "lens.glb")
-    mesh = next(iter(scene.geometry.values()))
     v, f = stl.read_stl(out / "lens.stl")
-    assert len(mesh.faces) == len(f) and mesh.is_watertight
-    # Metres, Y up: the STL's height in z becomes y / 1000.
-    assert mesh.bounds[1][1] == pytest.approx(v[:, 2].max() / 1000, rel=1e-5)
-    assert mesh.bounds[0][1] == pytest.approx(0.0, abs=1e-6)
-    material = mesh.visual.material
-    assert material.metallicFactor == 0 and material.roughnessFactor == 0
     design = json.loads((out / "design.json").read_text())
     assert design["lens"]["glb"] == "lens.glb"
+    assert design["lens"]["black_paint"] == tiny_design.lens.black_paint == "top_base_and_back"
+    assert design["lens"]["painted_u_deg"] == pytest.approx([225.0, 315.0], abs=20)  # the back, where no wall is
+    painted = paint.painted_faces(v, f, "top_base_and_back", v[:, 2].max(), design["lens"]["painted_u_deg"])
+    # The glass and the paint: one primitive each, together the whole closed lens.
+    parts = {g.visual.material.name: g for g in scene.geometry.values()}
+    glass, black = parts["lampfab glass"], parts["lampfab matt black paint"]
+    assert len(glass.faces) == (~painted).sum() and len(black.faces) == painted.sum()
+    # Each primitive holds its own copy of the shared positions: welded, one closed solid.
+    whole = trimesh.Trimesh(np.vstack([glass.vertices, black.vertices]),
+                            np.vstack([glass.faces, black.faces + len(glass.vertices)]))
+    assert whole.is_watertight and len(whole.faces) == len(f)
+    # Metres, Y up: the STL's height in z becomes y / 1000.
+    assert glass.bounds[1][1] == pytest.approx(v[:, 2].max() / 1000, rel=1e-5)
+    assert glass.bounds[0][1] == pytest.approx(0.0, abs=1e-6)
+    assert glass.visual.material.metallicFactor == 0 and glass.visual.material.roughnessFactor == 0
+    assert black.visual.material.baseColorFactor[:3].max() < 10  # 0-255: black
 
 
 def _chromium():

@@ -14,7 +14,7 @@ from ..progress import log
 def export(build: Build) -> dict:
     """lens.stl and lens.step, both read back and checked, lens.glb, design.json and
     fins.stl (``_fins``)."""
-    from ... import solid
+    from ... import paint, solid
     from ...export import gltf, step_file, stl
     from ...tolerances import VOLUME_REL
 
@@ -23,7 +23,10 @@ def export(build: Build) -> dict:
     stl_bytes = stl.write_stl(build.lens_stl, *build.solid_mesh())
     rv, rf = stl.read_stl(build.lens_stl)
     stl_volume = solid.mesh_volume(rv, rf)
-    glb_bytes = gltf.write_glb(build.lens_glb, rv, rf, fab.ior)
+    paint_info = build.kind.paint_json(build)
+    painted = paint.painted_faces(rv, rf, paint_info["black_paint"], float(rv[:, 2].max()),
+                                  paint_info.get("painted_u_deg"))
+    glb_bytes = gltf.write_glb(build.lens_glb, rv, rf, fab.ior, painted)
     edges = solid.edge_check(rf)
     if not _one_closed_solid(edges):
         raise LampfabError(f"{build.lens_stl}: read back it is not one closed, consistently wound "
@@ -41,7 +44,8 @@ def export(build: Build) -> dict:
         "units": "mm",
         "light": build.kind.light_json(build),
         "material": {"name": fab.material, "ior": fab.ior},
-        "lens": {"stl": build.lens_stl.name, "step": build.lens_step.name, "glb": build.lens_glb.name},
+        "lens": {"stl": build.lens_stl.name, "step": build.lens_step.name, "glb": build.lens_glb.name,
+                 **paint_info},
         "walls": [w.to_json(build.target_file(w.name).relative_to(build.out).as_posix()) for w in build.walls],
     })
     report.figure(stl_bytes=stl_bytes, stl_volume_mm3=stl_volume, stl_triangles=int(len(rf)), glb_bytes=glb_bytes,
