@@ -158,8 +158,10 @@ def room_pictures(vertices: np.ndarray, faces: np.ndarray, painted: np.ndarray, 
             np.array([0.0, -EYE_BEHIND_MM, position[2] + EYE_HEIGHT_MM / 2])
         look = [0.0, LOOK_AHEAD_MM, position[2] - 50.0]
         room_view = _denoised(mi, scene, _camera(mi, eye, look, width_px, rows, ROOM_FOV_DEG, spp, seed, "box"))
-        # Close: a third of the way up, from the front-right, the lens filling most of the view.
-        close_eye = np.array([1.8 * height, -3.4 * height, 1.9 * height])
+        # Close: a third of the way up, from the right and a little to the front, the lens
+        # filling most of the view: the right wall's sector in glass against the lit left
+        # wall, a painted back at its edge.
+        close_eye = np.array([3.7 * height, 0.8 * height, 1.9 * height])
         look = np.array([0.0, 0.0, 0.5 * height])
         close_px = (5 * width_px) // 8
         close = _denoised(mi, scene, _camera(mi, close_eye, look, close_px, (3 * close_px) // 4, 30.0, spp,

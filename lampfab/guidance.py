@@ -80,8 +80,7 @@ def paint(paint_json: dict) -> str:
     back = paint_json.get("painted_u_deg")
     where = "the flat top and the base"
     if back:
-        where += (f", and the outer surface from u {back[0]:g} to {back[1] % 360:g} deg (the back, around -y, "
-                  f"between the side walls' parts)")
+        where += f", and the outer surface from u {back[0]:g} to {back[1] % 360:g} deg (the part that faces no wall)"
     return (f"After finishing, paint {where} matt black: mask the rest with tape and use a matt black paint or "
             f"paint marker. They light no wall; painted, they swallow the light the lens reflects inside itself, "
             f"which would otherwise lie as a faint haze over the pictures. verify traced the lens painted so.")

@@ -6,8 +6,8 @@ and where a picture is black any haze costs SSIM fast.  Much of it travels throu
 flat top and base (reflected there, often totally) or through the sector of the outer
 surface that faces no wall.  Those faces send no light to the walls themselves, so paint
 there swallows the haze and takes nothing from the pictures: on the default lamps, the
-top and the base painted took the light reflected inside the lens from 2.5-4.5 % of
-each wall's light to 1.2-2.7 %, and the back as well to 0.2-1.9 % (bench/log).
+top and the base painted took the light reflected inside the lens from 2.0-4.5 % of
+each wall's light to 0.6-3.0 %, and the back as well to 0.2-1.9 % (bench/log).
 
 The paint is a finish the maker applies, so the refinement does not trace it: of the
 light it steers onto the walls, 0.01-0.1 % leaves through the top or the base and none
