@@ -71,3 +71,11 @@ def painted_faces(vertices: np.ndarray, faces: np.ndarray, choice: str, height_m
         outward = normal[:, 0] * centre[:, 0] + normal[:, 1] * centre[:, 1] > 0
         painted |= inside & outward & ~flat
     return painted
+
+
+def painted_from_json(vertices: np.ndarray, faces: np.ndarray, lens: dict) -> np.ndarray:
+    """``painted_faces`` of a lens solid (vertices (n, 3) float64 mm, the base on z = 0,
+    faces (m, 3) int) as design.json's ``lens`` says (``black_paint``, ``painted_u_deg``;
+    a design without them is unpainted): (m,) bool."""
+    return painted_faces(vertices, faces, lens.get("black_paint", "none"), float(vertices[:, 2].max()),
+                         lens.get("painted_u_deg"))

@@ -61,8 +61,7 @@ def load(design_path) -> Loaded:
     design = read_design(design_path)
     lens = design["lens"]
     vertices, faces = stl.read_stl(design_path.parent / lens["stl"])
-    painted = paint.painted_faces(vertices, faces, lens.get("black_paint", "none"), float(vertices[:, 2].max()),
-                                  lens.get("painted_u_deg"))
+    painted = paint.painted_from_json(vertices, faces, lens)
     return Loaded(design, design_path.parent, [room.Wall.from_json(w) for w in design["walls"]],
                   vertices, faces, painted, trace.MeshScene(vertices, faces, painted))
 

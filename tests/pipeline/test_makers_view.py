@@ -214,7 +214,7 @@ def test_optimization_gif_and_lens_glb(text_lamp, tiny_design):
     assert design["lens"]["glb"] == "lens.glb"
     assert design["lens"]["black_paint"] == tiny_design.lens.black_paint == "top_base_and_back"
     assert design["lens"]["painted_u_deg"] == pytest.approx([225.0, 315.0], abs=20)  # the back, where no wall is
-    painted = paint.painted_faces(v, f, "top_base_and_back", v[:, 2].max(), design["lens"]["painted_u_deg"])
+    painted = paint.painted_from_json(v, f, design["lens"])
     # The glass and the paint: one primitive each, together the whole closed lens.
     parts = {g.visual.material.name: g for g in scene.geometry.values()}
     glass, black = parts["lampfab glass"], parts["lampfab matt black paint"]

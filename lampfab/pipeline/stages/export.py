@@ -24,9 +24,7 @@ def export(build: Build) -> dict:
     rv, rf = stl.read_stl(build.lens_stl)
     stl_volume = solid.mesh_volume(rv, rf)
     paint_info = build.kind.paint_json(build)
-    painted = paint.painted_faces(rv, rf, paint_info["black_paint"], float(rv[:, 2].max()),
-                                  paint_info.get("painted_u_deg"))
-    glb_bytes = gltf.write_glb(build.lens_glb, rv, rf, fab.ior, painted)
+    glb_bytes = gltf.write_glb(build.lens_glb, rv, rf, fab.ior, paint.painted_from_json(rv, rf, paint_info))
     edges = solid.edge_check(rf)
     if not _one_closed_solid(edges):
         raise LampfabError(f"{build.lens_stl}: read back it is not one closed, consistently wound "
