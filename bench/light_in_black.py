@@ -89,7 +89,8 @@ def lens_cells(loaded: verify.Loaded, blacks: list[np.ndarray], photons: int, se
         pixels.append(trace.pixel_hits(mi, walls, shapes, o, d)[direct])
 
     o, d = trace.emit(mi, Source.from_json(design["light"]).point(), photons, seed)
-    trace.propagate(mi, loaded.scene.scene, o, d, float(design["material"]["ior"]), seed, 8, on_escape)
+    trace.propagate(mi, loaded.scene.scene, o, d, float(design["material"]["ior"]), seed, 8, on_escape,
+                    painted=loaded.scene.painted)
     points, pixel = np.concatenate(exits), np.concatenate(pixels)
     u = np.degrees(np.arctan2(points[:, 1], points[:, 0])) % 360.0
     bins = [np.arange(0.0, 360.0 + CELL_DEG, CELL_DEG), np.arange(0.0, points[:, 2].max() + CELL_MM, CELL_MM)]

@@ -243,13 +243,11 @@ def _mitsuba(loaded: Loaded, shapes: list, photons: int, seed: int) -> dict:
     return out
 
 
-def room_light(design_path, walls: list[room.Wall], width_px: int, photons: int, seed: int) -> list[np.ndarray]:
+def room_light(loaded: Loaded, walls: list[room.Wall], width_px: int, photons: int, seed: int) -> list[np.ndarray]:
     """The design's own light (its LED, a panel's beam with its spread) traced through its
-    STL onto ``walls``: per wall (rows, cols) flux, ``width_px`` wide (the room picture's
-    walls)."""
-    loaded = load(design_path)
-    loaded = replace(loaded, walls=walls)
-    images, _ = render_design(loaded, width_px, photons, seed, 8)
+    STL (``load``'s) onto ``walls``: per wall (rows, cols) flux, ``width_px`` wide (the room
+    picture's walls)."""
+    images, _ = render_design(replace(loaded, walls=walls), width_px, photons, seed, 8)
     return images
 
 

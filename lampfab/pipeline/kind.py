@@ -188,7 +188,7 @@ class Lamp(LensKind):
 
     def finishing(self, build) -> dict:
         """The tolerance study and the post-processing guidance (``guidance``)."""
-        from .. import guidance, tolerance_study
+        from .. import artifacts, guidance, tolerance_study
 
         d, v, fab = build.design, build.design.verify, build.fab
         make = self.solid_maker(build)
@@ -205,7 +205,7 @@ class Lamp(LensKind):
                      f"costs r {study['profile_error_drop']:.3f}")
         return {"tolerance": study,
                 "guidance": guidance.advice(fab, build.led, [w.name for w in build.walls], build.light, study,
-                                            self.paint_json(build))}
+                                            artifacts.read_json(build.design_file)["lens"])}
 
     def report_light(self, build, design: dict) -> dict:
         return design["light"]

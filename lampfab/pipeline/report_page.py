@@ -26,7 +26,7 @@ def pictures(build: Build) -> dict:
     around = beauty.room_walls(walls)
     # A quarter of verify's photons: shown at the room picture's scale, the walls' photon
     # grain stays under a grey level, and the trace takes 4 s instead of 13.
-    light = verify.room_light(build.design_file, around, beauty.ROOM_WALL_SCALE * v.image_px, v.photons // 4,
+    light = verify.room_light(loaded, around, beauty.ROOM_WALL_SCALE * v.image_px, v.photons // 4,
                               build.design.optimize.seed + 13)
     floor_z = float(build.light[2]) - build.design.room.floor_depth_mm
     room_view, close = beauty.room_pictures(vertices, faces, loaded.painted, build.fab.ior,
