@@ -131,6 +131,10 @@ class Verify:
     image_px: int = _spec(64, 8, 4096, doc="verify image width in pixels")
     photons: int = _spec(16_000_000, 10_000, 2_000_000_000, doc="photons per verify render (a quarter of them for "
                                                                         "plan's plain lens and the room picture's walls)")
+    led_photons: int = _spec(0, 0, 2_000_000_000,
+                             doc="photons of the render with the design's own light (its LED, a panel's beam with "
+                                 "its spread), whose figures are held against the LED reference (0: as many as "
+                                 "photons)")
     study_photons: int = _spec(1_000_000, 10_000, 2_000_000_000,
                                doc="photons per render of the tolerance study (eight or nine renders; the same photons "
                                    "in each, so their differences are not noise)")

@@ -57,7 +57,8 @@ def in_flight(stage: str, design: Design) -> tuple[int, str]:
         views = len(design.room.walls) if opt.schedule == "joint" else 1
         return opt.spp * opt.sensor_px**2 * views, "[optimize] spp, sensor_px"
     if stage == "verify":
-        return max(min(v.photons, TRACE_BATCH), v.scene_px**2 * v.scene_spp), "[verify] photons, scene_px, scene_spp"
+        return (max(min(max(v.photons, v.led_photons), TRACE_BATCH), v.scene_px**2 * v.scene_spp),
+                "[verify] photons, led_photons, scene_px, scene_spp")
     return 0, ""
 
 

@@ -98,11 +98,13 @@ def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bo
 
 
 def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bounces: int,
-           mitsuba_photons: int = 0, texts: dict[str, str] | None = None) -> dict:
-    """Render point-light and LED-size images, compare with the targets, write images.
+           mitsuba_photons: int = 0, texts: dict[str, str] | None = None, led_photons: int = 0) -> dict:
+    """Render point-light and LED-size images (``photons`` and ``led_photons``, 0: as
+    many), compare with the targets, write images.
 
     Returns {"walls": {name: {pearson, ssim, share, ghost_share, direct_ssim, ssim_ceiling,
-    led_pearson, led_ssim, led_share, ...}}, "lost_share", "trapped_share", ...}.
+    led_pearson, led_ssim, led_share, ...}}, "lost_share", "trapped_share", "photons",
+    "led_photons" (the second render's, as traced), ...}.
 
     Where the target has a black background (``metrics.contrast``), ``contrast_ratio``
     and ``black_share`` (point light) and ``led_contrast_ratio`` and ``led_black_share``
@@ -135,11 +137,13 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
     loaded = load(design_path)
     design = loaded.design
     walls = loaded.walls
-    point, info, led, led_info, kernels = render_both(loaded, image_px, photons, seed, max_bounces)
+    point, info, led, led_info, kernels = render_both(loaded, image_px, photons, seed, max_bounces,
+                                                      led_photons=led_photons)
     mitsuba = _mitsuba(loaded, [p.shape for p in point], mitsuba_photons, seed + 2) \
         if kernels is not None and mitsuba_photons else None
     figures = {"walls": {}, "lost_share": info["lost"], "trapped_share": info["trapped"],
                "led_radius_mm": design["light"]["radius"], "photons": photons,
+               "led_photons": int(led_info["photons"]),
                "real_light": _real_light(design["light"])}
     for k, wall in enumerate(walls):
         target = loaded.target(k, point[k].shape)
@@ -178,11 +182,19 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
     return figures
 
 
-def render_both(loaded: Loaded, image_px: int, photons: int, seed: int, max_bounces: int, ior=None):
-    """The point light's render (``seed``) and the design's own light's (``seed + 1``),
-    as ``render_design`` makes them, with the LED's kernels measured on both
-    (``sharpness.Kernels``; None for a panel's beam).  Returns (point images, its info,
-    light images, its info, kernels)."""
+def render_both(loaded: Loaded, image_px: int, photons: int, seed: int, max_bounces: int, ior=None,
+                led_photons: int = 0):
+    """The point light's render (``seed``) and the design's own light's (``seed + 1``,
+    ``led_photons``, 0: as many as ``photons``), as ``render_design`` makes them, with
+    the LED's kernels measured on both (``sharpness.Kernels``, on cells sized for
+    ``photons``; None for a panel's beam).  Returns (point images, its info, light
+    images, its info, kernels).
+
+    The second render's figures are the ones held against the LED reference, and its
+    photon noise, which the lamp does not have, costs SSIM on black backgrounds: the
+    apple's LED SSIM was 0.80 / 0.75 / 0.77 at 16 M photons, 0.82 / 0.77 / 0.79 at 64 M
+    and 0.82 / 0.78 / 0.79 at 256 M, and the bundled phrase read 3 of 4 words on its
+    front wall at 16 M and all four at 64 M (bench/RESULTS.md)."""
     from . import sharpness
 
     led_light = loaded.design["light"].get("type") != "collimated"
@@ -190,8 +202,8 @@ def render_both(loaded: Loaded, image_px: int, photons: int, seed: int, max_boun
                for _ in range(2)] if led_light else [None, None]
     point, info = render_design(loaded, image_px, photons, seed, max_bounces, True, kernel_moments=moments[0],
                                 ior=ior)
-    led, led_info = render_design(loaded, image_px, photons, seed + 1, max_bounces, kernel_moments=moments[1],
-                                  ior=ior)
+    led, led_info = render_design(loaded, image_px, led_photons or photons, seed + 1, max_bounces,
+                                  kernel_moments=moments[1], ior=ior)
     return point, info, led, led_info, sharpness.Kernels.of(*moments) if led_light else None
 
 

@@ -86,6 +86,8 @@ def test_design_json_contract_and_files(lamp):
 def test_verify_reports_figures_and_report_embeds_images(lamp):
     out, _, _, _ = lamp
     figures = json.loads((out / "verify.json").read_text())["figures"]
+    # The LED's render traces its own photon count (the tiny profile's led_photons).
+    assert figures["led_photons"] == pytest.approx(2 * figures["photons"], rel=0.02)
     for name in ["front", "left", "right"]:
         wall = figures["walls"][name]
         # The tiny profile's lens (16 px walls, two refinement steps) reaches r 0.89-0.91.

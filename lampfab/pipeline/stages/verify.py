@@ -20,7 +20,8 @@ def verify(build: Build) -> dict:
     bar = PartsBar("verify", ["tracing the exported lens", "tolerance study", "the lamp's renders", "report.html"])
     bar.begin("tracing the exported lens")
     figures = verify_mod.verify(build.design_file, build.verify_dir, v.image_px, v.photons,
-                                build.design.optimize.seed + 7, v.max_bounces, v.mitsuba_photons, texts)
+                                build.design.optimize.seed + 7, v.max_bounces, v.mitsuba_photons, texts,
+                                v.led_photons)
     read = {n: f for n, f in figures["walls"].items() if "words" in f}
     if read:
         def counts(key):
