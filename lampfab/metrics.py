@@ -65,23 +65,35 @@ def pearson(render, target) -> float:
 
 def ssim(render, target) -> float:
     """SSIM of the mean-normalized images (see module docstring for data_range)."""
+    local = ssim_map(render, target)
+    value = float(local.mean()) if local is not None else 0.0
+    return value if np.isfinite(value) else 0.0
+
+
+def ssim_map(render, target) -> np.ndarray | None:
+    """The local SSIM that ``ssim`` averages, per pixel: (rows - 2p, cols - 2p) float64,
+    the border p of half the window cropped as scikit-image crops it; None where either
+    image has no light."""
     from skimage.metrics import structural_similarity
 
     r, t = _pair(render, target)
     rn, tn = _normalized(r), _normalized(t)
     if rn is None or tn is None:
-        return 0.0
+        return None
     data_range = ssim_data_range(tn)
     small = min(r.shape)
     if small >= _GAUSS_MIN:
         kw = dict(gaussian_weights=True, sigma=SSIM_SIGMA, use_sample_covariance=False)
+        pad = (_GAUSS_MIN - 1) // 2
     elif small >= 3:
         # Too small for Wang's window: the largest odd uniform window that fits.
-        kw = dict(win_size=small if small % 2 else small - 1, use_sample_covariance=False)
+        win = small if small % 2 else small - 1
+        kw = dict(win_size=win, use_sample_covariance=False)
+        pad = (win - 1) // 2
     else:
         raise ValueError(f"images of shape {r.shape} are too small for SSIM (need 3x3)")
-    value = structural_similarity(rn, tn, data_range=data_range, K1=SSIM_K1, K2=SSIM_K2, **kw)
-    return float(value) if np.isfinite(value) else 0.0
+    _, local = structural_similarity(rn, tn, data_range=data_range, K1=SSIM_K1, K2=SSIM_K2, full=True, **kw)
+    return local[pad:local.shape[0] - pad, pad:local.shape[1] - pad]
 
 
 def ssim_data_range(normalized_target: np.ndarray) -> float:

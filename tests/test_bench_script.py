@@ -54,3 +54,25 @@ def test_the_slope_projection_benchmark_replays_under_both_solvers(cyl):
     for x, y in zip(own[2], lu[2], strict=True):
         assert np.allclose(x, y, atol=1e-9)
     assert isinstance(limits._edge_system(64, 17)[3], limits._GridLaplacian)
+
+
+def test_the_ssim_regions_split_a_wall_and_find_a_veil_on_its_black():
+    """bench/ssim_regions.py: the five regions tile the wall, and a faint veil added to
+    a perfect picture costs SSIM where the wall is black and far from the picture."""
+    import numpy as np
+
+    from lampfab import metrics
+
+    bench = _load("ssim_regions")
+    y, x = np.mgrid[0:48, 0:64]
+    target = np.clip((16 - np.hypot(x - 32, y - 24)) / 4, 0, 1)  # a flat bright disc, a soft rim, black around
+    masks = bench.regions(target)
+    assert sum(m.astype(int) for m in masks.values()).max() == 1 == sum(m.astype(int) for m in masks.values()).min()
+    assert all(m.any() for m in masks.values())
+    veiled = target + 0.01 * target.max()
+    found = bench.wall_regions(target, {"reference": target, "LED render": veiled, "direct": target})
+    assert found["far black"]["reference"] == 1.0 and found["bright interior"]["LED render"] > 0.98
+    assert found["far black"]["LED render"] < 0.7 and found["ripple"] == 0.0
+    cost = {n: r["share"] * (r["reference"] - r["LED render"]) for n, r in found.items() if n != "ripple"}
+    assert sum(cost.values()) == pytest.approx(1.0 - metrics.ssim(veiled, target), abs=1e-12)
+    assert max(cost, key=cost.get) == "far black"

@@ -36,6 +36,11 @@ def test_figures_match_numpy_and_scikit_image(target):
     expected = structural_similarity(rn, tn, data_range=np.ptp(tn), gaussian_weights=True, sigma=1.5,
                                      use_sample_covariance=False)
     assert ssim(render, target) == pytest.approx(expected, abs=1e-12) and 0.1 < expected < 0.9
+    # The local map ssim averages: the image less scikit-image's 5 px border, lowest where
+    # the render was shifted against the disc's edge.
+    local = metrics.ssim_map(render, target)
+    assert local.shape == (38, 54) and local.mean() == pytest.approx(expected, abs=1e-12)
+    assert local.min() < expected < local.max()
 
 
 def test_negative_image_anticorrelates(target):
@@ -78,7 +83,7 @@ def test_blur_lowers_figures(target):
 def test_small_images_use_a_smaller_window():
     rng = np.random.default_rng(0)
     img = rng.random((5, 9))
-    assert ssim(img, img) == pytest.approx(1.0)
+    assert ssim(img, img) == pytest.approx(1.0) and metrics.ssim_map(img, img).shape == (1, 5)
     with pytest.raises(ValueError):
         ssim(rng.random((2, 9)), rng.random((2, 9)))
 
