@@ -63,11 +63,12 @@ def wall_regions(target: np.ndarray, pictures: dict[str, np.ndarray]) -> dict:
     rows, cols = next(iter(maps.values())).shape
     pad = (target.shape[0] - rows) // 2, (target.shape[1] - cols) // 2
     out = {}
-    for name, mask in regions(target).items():
+    found = regions(target)
+    for name, mask in found.items():
         mask = mask[pad[0]:pad[0] + rows, pad[1]:pad[1] + cols]
         if mask.any():
             out[name] = {"share": float(mask.mean()), **{k: float(m[mask].mean()) for k, m in maps.items()}}
-    inside = regions(target)["bright interior"]
+    inside = found["bright interior"]
     led, reference = (pictures[k] / pictures[k].mean() for k in ("LED render", "reference"))
     out["ripple"] = float((led - reference)[inside].std() / reference[inside].mean()) if inside.sum() > 1 else None
     return out

@@ -97,10 +97,10 @@ def render_design(loaded: Loaded, image_px: int, photons: int, seed: int, max_bo
     return images, info
 
 
-def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bounces: int,
+def verify(loaded: Loaded, out_dir, image_px: int, photons: int, seed: int, max_bounces: int,
            mitsuba_photons: int = 0, texts: dict[str, str] | None = None, led_photons: int = 0) -> dict:
-    """Render point-light and LED-size images (``photons`` and ``led_photons``, 0: as
-    many), compare with the targets, write images.
+    """Render a design (``load``'s) with point-light and LED-size images (``photons``
+    and ``led_photons``, 0: as many), compare with the targets, write images.
 
     Returns {"walls": {name: {pearson, ssim, share, ghost_share, direct_ssim, ssim_ceiling,
     led_pearson, led_ssim, led_share, ...}}, "lost_share", "trapped_share", "photons",
@@ -134,7 +134,6 @@ def verify(design_path, out_dir, image_px: int, photons: int, seed: int, max_bou
     (``mitsuba_reference``): ``mitsuba_pearson`` (LED) and ``mitsuba_point_pearson``.
     """
     out_dir = Path(out_dir)
-    loaded = load(design_path)
     design = loaded.design
     walls = loaded.walls
     point, info, led, led_info, kernels = render_both(loaded, image_px, photons, seed, max_bounces,

@@ -3,8 +3,13 @@ renders and the page's own pictures (``report`` writes the HTML)."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from .. import artifacts
 from .build import Build
+
+if TYPE_CHECKING:
+    from ..verify import Loaded
 
 _NEXT_STEPS_BLENDER = (
     "<p>For a beauty render, import <code>lens.glb</code> into Blender (File › Import › glTF): it arrives "
@@ -12,14 +17,13 @@ _NEXT_STEPS_BLENDER = (
     "the light and the walls in the same frame.</p>")
 
 
-def pictures(build: Build) -> dict:
-    """The report's own pictures: the lamp in its room, the lens close up as glass and
-    as a matte object, the unrolled heightmap.  Returns their paths by name (room,
-    closeup, lens, heightmap)."""
+def pictures(build: Build, loaded: Loaded) -> dict:
+    """The report's own pictures of ``build``'s design (``loaded``: ``verify.load``'s):
+    the lamp in its room, the lens close up as glass and as a matte object, the unrolled
+    heightmap.  Returns their paths by name (room, closeup, lens, heightmap)."""
     from .. import beauty, verify
 
     v = build.design.verify
-    loaded = verify.load(build.design_file)
     design, vertices, faces = loaded.design, loaded.vertices, loaded.faces
     walls = loaded.walls
     paths = {name: build.report_picture(name) for name in ("room", "closeup", "lens", "heightmap")}
