@@ -2,9 +2,10 @@
 
 The light inside the glass does not depend on the outer surface: each step's photons
 leave the LED stratified over the sphere and are traced through the fixed inner layer
-once.  The step then needs a single intersection with the outer mesh, Snell's law at
-the hit facet, the wall plane, and a splat into each wall's image (bilinear on a finer
-grid, summed per pixel).  Every photon counts (no camera connection), and the photon set
+once.  The step then needs the facet each photon crosses on the outer mesh (found by
+``facetwalk``, with no BVH to build again as the surface moves), Snell's law there, the
+wall plane, and a splat into each wall's image (bilinear on a finer grid, summed per
+pixel).  Every photon counts (no camera connection), and the photon set
 is fixed for a step, so the objective has no Monte Carlo noise within a step.  Of the
 Fresnel reflections only the cavity's are traced (``trace.into_glass``), since the outer
 surface steers them onto the walls; verify traces them all.
@@ -19,9 +20,11 @@ to run.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from . import losses, surface
+from . import facetwalk, losses, surface
 from .optimize import Optimizer
 
 # Photons are splatted bilinearly onto a grid this many times finer than the wall's image,
@@ -56,20 +59,20 @@ class SplatOptimizer(Optimizer):
     def _ensure_scene(self, heights: np.ndarray) -> None:
         if self._scene_grid == heights.shape:
             return
+        from .mi_env import mitsuba
         from .trace import MeshScene
 
+        self.mi = mitsuba()
         verts, faces = surface.closed_outer_mesh(self.cyl, heights, self.opt.tessellation)
-        self.outer = MeshScene(verts, faces)
         self.n_vertices = len(verts)
-        self.mi = self.outer.mi
-        self.params = self.mi.traverse(self.outer.scene)
-        self.key = "lens.vertex_positions"
+        self.faces = self.mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
         self.fine = surface.fine_shape(*heights.shape, self.opt.tessellation)
         self.radial = surface.radial_dirs(*self.fine)
         self.inner = MeshScene(self.inner_v, self.inner_f[:, ::-1])  # normals into the cavity
         self._photon_key = None
         self._scene_grid = heights.shape
-        self._heights_set = heights.copy()  # the scene was built with them
+        self._heights_set = None
+        self._set_heights(heights)
 
     def _photons(self, seed: int, level: int) -> None:
         """Photons in the glass, after the inner layer, with their flux
@@ -103,14 +106,14 @@ class SplatOptimizer(Optimizer):
         self._photon_key = (seed, count)
 
     def _set_heights(self, heights: np.ndarray) -> None:
-        # Mitsuba rebuilds its BVH on every update (0.3-0.4 s on 2 cores at the default
-        # grid); a preview after a step traces the heights the next step starts from.
-        if np.array_equal(heights, self._heights_set):
+        # A preview after a step traces the heights the next step starts from.
+        if self._heights_set is not None and np.array_equal(heights, self._heights_set):
             return
         self._heights_set = heights.copy()
         verts, _ = surface.closed_outer_mesh(self.cyl, heights, self.opt.tessellation)
-        self.params[self.key] = self.mi.Float(np.ascontiguousarray(verts, np.float32).ravel())
-        self.params.update()
+        self.positions = self.mi.Float(np.ascontiguousarray(verts, np.float32).ravel())
+        # Where the facet walk starts: the mean radius of the surface.
+        self.walk_radius_mm = self.cyl.radius_mm + float(heights.mean())
 
     def _landing(self, views: list[int], grad: bool):
         """Where each photon lands on each wall, in pixel units.
@@ -126,16 +129,19 @@ class SplatOptimizer(Optimizer):
         from .trace import _take
 
         mi = self.mi
-        si = self.outer.scene.ray_intersect(mi.Ray3f(self.o_glass, self.d_glass), mi.RayFlags.Minimal, False)
-        met = dr.compress(si.is_valid())
-        prim = dr.gather(mi.UInt32, si.prim_index, met)
+        positions = dr.unravel(mi.Point3f, self.positions)
+        hit, settled = facetwalk.first_hits(mi, self.o_glass, self.d_glass, positions, *self.fine,
+                                            self.cyl.height_mm, self.walk_radius_mm)
+        # Photons of no weight (those that never reached the glass, reflections a fin
+        # stopped) add nothing to a picture or a gradient.
+        met = dr.compress(settled & (self.w_glass > 0))
+        prim = dr.gather(mi.UInt32, hit, met)
         o = _take(mi.Point3f, self.o_glass, met)
         d = _take(mi.Vector3f, self.d_glass, met)
         weights = dr.gather(mi.Float, self.w_glass, met).numpy().astype(np.float64)
         # Corners gathered in Dr.Jit, not passed in from numpy: Dr.Jit uses numpy's
         # memory as it lies, and each alignment of each input compiles another kernel.
-        index = [dr.gather(mi.UInt32, self.params["lens.faces"], prim * 3 + j) for j in range(3)]
-        positions = dr.unravel(mi.Point3f, self.params[self.key])
+        index = [dr.gather(mi.UInt32, self.faces, prim * 3 + j) for j in range(3)]
         v = [_take(mi.Point3f, positions, i) for i in index]
         dr.eval(index, v)
         corners = np.stack([i.numpy() for i in index], 1).astype(np.int64)
@@ -169,47 +175,59 @@ class SplatOptimizer(Optimizer):
             per_view.append((x, y, ok.numpy()))
         return corners, v, weights, per_view
 
-    def _splat(self, x: np.ndarray, y: np.ndarray, ok: np.ndarray, view: int, weight: np.ndarray,
-               grad_image: np.ndarray | None = None):
-        """Splat of photons of flux ``weight`` (k,) at pixel coordinates (x, y) (k,) float64
-        into a (rows*cols,) float64 flux image, summed in numpy: bilinear on a grid
-        ``SUPERSAMPLE`` times finer, then summed over each pixel's sub-pixels.  With
-        ``grad_image`` (the loss's gradient per pixel) returns instead the loss's gradient
-        per photon with respect to x and y: ((k,), (k,)) float64."""
+    def _landed(self, x: np.ndarray, y: np.ndarray, ok: np.ndarray, view: int, weight: np.ndarray) -> "_Landed":
+        """The photons of flux ``weight`` (k,) that land on wall ``view`` at pixel
+        coordinates (x, y) (k,) float64 (where ``ok``), placed on its splat grid: one
+        ``SUPERSAMPLE`` times finer than the image, with a border of one cell on every
+        side, so each photon's four bilinear corners fall inside it."""
         rows, cols = self.shapes[view]
         s = SUPERSAMPLE
         fine_rows, fine_cols = rows * s, cols * s
         xf, yf = (x + 0.5) * s - 0.5, (y + 0.5) * s - 0.5
-        ok = ok & np.isfinite(xf) & np.isfinite(yf) & (xf > -1) & (xf < fine_cols) & (yf > -1) & (yf < fine_rows)
+        ok = ok & (xf > -1) & (xf < fine_cols) & (yf > -1) & (yf < fine_rows)  # NaN compares False
         # Each photon lands on one wall at most: the others' arrays shrink to a third.
         sel = np.flatnonzero(ok)
-        xf, yf, weight = xf[sel], yf[sel], np.broadcast_to(weight, x.shape)[sel]
+        xf, yf = xf[sel], yf[sel]
         x0, y0 = np.floor(xf), np.floor(yf)
         fx, fy = xf - x0, yf - y0
-        x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
-        if grad_image is None:
-            image = np.zeros(fine_rows * fine_cols)
-        else:
-            gx, gy = np.zeros(len(sel)), np.zeros(len(sel))
-        for dx, dy, w, dw_dx, dw_dy in ((0, 0, (1 - fx) * (1 - fy), -(1 - fy), -(1 - fx)),
-                                        (1, 0, fx * (1 - fy), 1 - fy, -fx),
-                                        (0, 1, (1 - fx) * fy, -fy, 1 - fx),
-                                        (1, 1, fx * fy, fy, fx)):
-            cx, cy = x0 + dx, y0 + dy
-            inside = (cx >= 0) & (cx < fine_cols) & (cy >= 0) & (cy < fine_rows)
-            if grad_image is None:
-                pixel = np.where(inside, cy * fine_cols + cx, 0)
-                image += np.bincount(pixel, weights=np.where(inside, weight * w, 0.0), minlength=image.size)
-            else:
-                pixel = np.where(inside, (cy // s) * cols + cx // s, 0)  # the image pixel holding it
-                g = np.where(inside, weight * grad_image[pixel], 0.0)
-                gx += g * dw_dx
-                gy += g * dw_dy
-        if grad_image is not None:
-            out_x, out_y = np.zeros(len(x)), np.zeros(len(x))
-            out_x[sel], out_y[sel] = gx * s, gy * s  # d(xf)/dx = s
-            return out_x, out_y
+        width = fine_cols + 2
+        corner = (y0.astype(np.int64) + 1) * width + x0.astype(np.int64) + 1
+        return _Landed(sel, len(x), corner, fx, fy, np.broadcast_to(weight, x.shape)[sel], width, (rows, cols))
+
+    @staticmethod
+    def _image(landed: "_Landed") -> np.ndarray:
+        """The (rows*cols,) float64 flux image: bilinear on the splat grid, summed over
+        each pixel's sub-pixels (in numpy, in a fixed order)."""
+        rows, cols = landed.shape
+        s, width = SUPERSAMPLE, landed.width
+        fx, fy, weight = landed.fx, landed.fy, landed.weight
+        size = (rows * s + 2) * width
+        image = np.zeros(size)
+        for offset, w in ((0, (1 - fx) * (1 - fy)), (1, fx * (1 - fy)), (width, (1 - fx) * fy), (width + 1, fx * fy)):
+            image += np.bincount(landed.corner + offset, weights=weight * w, minlength=size)
+        image = image.reshape(rows * s + 2, width)[1:-1, 1:-1]
         return image.reshape(rows, s, cols, s).sum(axis=(1, 3)).ravel()
+
+    @staticmethod
+    def _image_adjoint(landed: "_Landed", grad_image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The loss's gradient per photon with respect to x and y, ((k,), (k,)) float64,
+        from its gradient per pixel ``grad_image`` (rows*cols,)."""
+        rows, cols = landed.shape
+        s, width = SUPERSAMPLE, landed.width
+        fx, fy = landed.fx, landed.fy
+        # Each sub-pixel carries its pixel's gradient; the border carries none.
+        per_cell = np.zeros((rows * s + 2, width))
+        per_cell[1:-1, 1:-1] = np.repeat(np.repeat(grad_image.reshape(rows, cols), s, 0), s, 1)
+        per_cell = per_cell.ravel()
+        gx, gy = np.zeros(len(fx)), np.zeros(len(fx))
+        for offset, dw_dx, dw_dy in ((0, -(1 - fy), -(1 - fx)), (1, 1 - fy, -fx),
+                                     (width, -fy, 1 - fx), (width + 1, fy, fx)):
+            g = landed.weight * per_cell[landed.corner + offset]
+            gx += g * dw_dx
+            gy += g * dw_dy
+        out_x, out_y = np.zeros(landed.count), np.zeros(landed.count)
+        out_x[landed.sel], out_y[landed.sel] = gx * s, gy * s  # d(xf)/dx = s
+        return out_x, out_y
 
     def render(self, heights: np.ndarray, view: int, seed: int) -> np.ndarray:
         return self._render(heights, [view], seed)[0]
@@ -223,8 +241,8 @@ class SplatOptimizer(Optimizer):
         self._photons(seed, -1)
         self._set_heights(heights)
         _, _, weights, per_view = self._landing(views, grad=False)
-        return [self._splat(x.numpy().astype(np.float64), y.numpy().astype(np.float64), ok, view,
-                            weights / self.n_photons).reshape(self.shapes[view])
+        return [self._image(self._landed(x.numpy().astype(np.float64), y.numpy().astype(np.float64), ok, view,
+                                         weights / self.n_photons)).reshape(self.shapes[view])
                 for view, (x, y, ok) in zip(views, per_view)]
 
     def gradient(self, heights: np.ndarray, views: list[int], seed: int, level: int = -1) -> tuple[float, np.ndarray]:
@@ -239,11 +257,11 @@ class SplatOptimizer(Optimizer):
         total = 0.0
         surrogate = self.mi.Float(0.0)
         for view, (x, y, ok) in zip(views, per_view):
-            xs, ys = x.numpy().astype(np.float64), y.numpy().astype(np.float64)
-            image = self._splat(xs, ys, ok, view, flux).reshape(self.shapes[view])
+            landed = self._landed(x.numpy().astype(np.float64), y.numpy().astype(np.float64), ok, view, flux)
+            image = self._image(landed).reshape(self.shapes[view])
             loss, grad_image = losses.view_loss_and_grad(self.opt.loss, image, self.targets[view], weights[view])
             total += loss
-            gx, gy = self._splat(xs, ys, ok, view, flux, grad_image.ravel())
+            gx, gy = self._image_adjoint(landed, grad_image.ravel())
             # Linear in x and y with the loss's slopes: its backward pass gives each
             # photon's facet corners their gradient, photon by photon (no sums).
             surrogate = surrogate + _jit_float(self.mi, gx) * x + _jit_float(self.mi, gy) * y
@@ -258,6 +276,20 @@ class SplatOptimizer(Optimizer):
         mu, mv = self.fine
         g_fine = np.einsum("ij,ij->i", grad_vertices[: mu * mv], self.radial).reshape(mu, mv)
         return total, surface.sample_adjoint(self.cyl, g_fine, *heights.shape)
+
+
+@dataclass(frozen=True)
+class _Landed:
+    """Photons on one wall's splat grid (see ``SplatOptimizer._landed``)."""
+
+    sel: np.ndarray  # (k,) int64: which of the step's photons these are
+    count: int  # the step's photons, on every wall
+    corner: np.ndarray  # (k,) int64: each one's upper-left corner on the bordered grid
+    fx: np.ndarray  # (k,) float64: where in that cell, 0-1 across
+    fy: np.ndarray  # (k,) float64: and down
+    weight: np.ndarray  # (k,) float64: its flux
+    width: int  # the bordered grid's width
+    shape: tuple[int, int]  # the image's (rows, cols)
 
 
 def _jit_float(mi, values: np.ndarray):

@@ -41,6 +41,12 @@ BSPLINE_DEVIATION_MM = 5e-3
 # is ~1e2 mm across, so 1e-4 mm is ~1e-6 relative, well above float32 rounding at 1e2.
 RAY_EPSILON_MM = 1e-4
 
+# The facet walk (``facetwalk``) takes a facet as holding a ray's hit when its
+# barycentric weights are all above minus this: float32 rounding of the weights of a
+# hit on an edge is ~1e-7, and a hit 1e-6 of a facet outside it (~0.3 nm on the
+# default's facets) lands where the neighbour's plane would put it.
+FACET_WALK_BARYCENTRIC = 1e-6
+
 # A heightmap may not bring the outer surface closer than this to the inner layer
 # during optimization even before the fabrication check (keeps the solid valid).
 MIN_GAP_MM = 0.5
