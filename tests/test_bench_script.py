@@ -76,3 +76,25 @@ def test_the_ssim_regions_split_a_wall_and_find_a_veil_on_its_black():
     cost = {n: r["share"] * (r["reference"] - r["LED render"]) for n, r in found.items() if n != "ripple"}
     assert sum(cost.values()) == pytest.approx(1.0 - metrics.ssim(veiled, target), abs=1e-12)
     assert max(cost, key=cost.get) == "far black"
+
+
+def test_the_facet_walk_benchmark_finds_the_facets_mitsuba_finds(tmp_path, tiny_profile):
+    """bench/facet_walk.py on a tiny build's bumpy first design: both searches run on the
+    same photons, and they agree on nearly every facet."""
+    import numpy as np
+
+    from lampfab import pipeline
+
+    bench = _load("facet_walk")
+    build = pipeline.Build.open(tmp_path / "b", str(tiny_profile), "sla_resin", "post3535")
+    apple = str(ROOT / "examples" / "apple.png")
+    pipeline.snapshot(build, {"all": apple})
+    pipeline.prepare(build, apple, {})
+    opt = build.design.optimize
+    heights = 2.0 + np.random.default_rng(5).normal(scale=0.3, size=(opt.grid_u, opt.grid_v))
+    np.savez(build.out / "init.npz", heights=heights)
+    row = bench.measure(build.out, repeats=1)
+    assert row["with flux"] > 0.5 * row["photons"]
+    assert row["same"] > 0.999 * row["with flux"]
+    assert row["bvh_s"] > 0 and row["walk_s"] > 0
+    assert "| b | " in bench.report([row], 1)
