@@ -10,10 +10,12 @@ the top and bottom are found apart, by where the ray meets their planes.
 
 The refinement moves every vertex on every step, and Mitsuba must then build its BVH
 again (0.28 s a step for the default's 526 k facets on 2 cores, a fifth of a fine step,
-and its intersection as long again).  The walk takes 0.09 s for the apple's 2 M photons
-and needs no structure; it gave the facet Mitsuba's BVH gives to 99.989 % of them, the
-rest on edges shared by two facets or not settled (0.01 %, on the steepest parts,
-which the caller leaves out).  bench/log/2026-12-07.md has the measurements.
+and its intersection as long again).  The walk needs no structure and finds the facets
+of a fine step's photons 2.6-3.8 times faster than Mitsuba builds and intersects.
+It gave Mitsuba's facet to 99.97-99.999 % of the photons on the built lenses; the rest
+lie on an edge two facets share, or the walk does not settle on a facet ahead of the
+photon (under 2 in 10⁴, where a ray runs nearly along the surface), and the caller
+leaves those out (``bench/facet_walk.py``; bench/log/2026-12-07.md).
 
 Faces are numbered as ``closed_outer_mesh`` numbers them: the first triangle of each
 cell (i, j) is ``i * (mv - 1) + j``, the second ``mu * (mv - 1)`` later, then the bottom
@@ -75,8 +77,11 @@ def first_hits(mi, o, d, positions, mu: int, mv: int, height_mm: float, radius_m
         b2 = dr.dot(d, qv) / det
         t = dr.dot(e2, qv) / det
         b0 = 1.0 - b1 - b2
-        settled = (b0 >= -FACET_WALK_BARYCENTRIC) & (b1 >= -FACET_WALK_BARYCENTRIC) & (b2 >= -FACET_WALK_BARYCENTRIC)
-        away = ~settled
+        holds = (b0 >= -FACET_WALK_BARYCENTRIC) & (b1 >= -FACET_WALK_BARYCENTRIC) & (b2 >= -FACET_WALK_BARYCENTRIC)
+        # A ray nearly along the surface can be led to the facet its line crosses behind
+        # its origin, on the far side of the lens: that one does not count.
+        settled = holds & (t > 0)
+        away = ~holds
         # Which edge: opposite corner 0, 1 or 2 of the facet's (k0, k1, k2).
         k = dr.select((b0 <= b1) & (b0 <= b2), 0, dr.select(b1 <= b2, 1, 2))
         i, j, second = _across(mi, i, j, second, k, away, mu, mv)

@@ -175,8 +175,13 @@ class Optimizer:
         raise NotImplementedError
 
     def render_all(self, heights: np.ndarray, seed: int) -> list[np.ndarray]:
-        """``render`` of every wall: the previews and the optimizer's final picture."""
+        """``render`` of every wall: the optimizer's final picture."""
         return [self.render(heights, k, seed) for k in range(len(self.walls))]
+
+    def preview_all(self, heights: np.ndarray, seed: int) -> list[np.ndarray]:
+        """Pictures of every wall for the previews every few steps: ``render_all``
+        unless a method can make them cheaper."""
+        return self.render_all(heights, seed)
 
     def makeable(self, heights: np.ndarray) -> np.ndarray:
         """Project into what the fabrication profile allows (slopes, overhangs, hollows a

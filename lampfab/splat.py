@@ -235,10 +235,16 @@ class SplatOptimizer(Optimizer):
     def render_all(self, heights: np.ndarray, seed: int) -> list[np.ndarray]:
         return self._render(heights, list(range(len(self.walls))), seed)
 
-    def _render(self, heights: np.ndarray, views: list[int], seed: int) -> list[np.ndarray]:
-        """(rows, cols) flux images of ``views``, from one trace of the photons."""
+    def preview_all(self, heights: np.ndarray, seed: int) -> list[np.ndarray]:
+        # With the coarse level's photons: a preview only shows the steps' progress,
+        # and the fine level's four times as many took 1.3 s a preview.
+        return self._render(heights, list(range(len(self.walls))), seed, level=0)
+
+    def _render(self, heights: np.ndarray, views: list[int], seed: int, level: int = -1) -> list[np.ndarray]:
+        """(rows, cols) flux images of ``views``, from one trace of the photons of a
+        step of ``level``."""
         self._ensure_scene(heights)
-        self._photons(seed, -1)
+        self._photons(seed, level)
         self._set_heights(heights)
         _, _, weights, per_view = self._landing(views, grad=False)
         return [self._image(self._landed(x.numpy().astype(np.float64), y.numpy().astype(np.float64), ok, view,

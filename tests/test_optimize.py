@@ -68,6 +68,12 @@ def test_finer_levels_trace_fine_level_photons_times_as_many(mi, tiny_design, in
         counts[level] = opt.n_photons
     assert counts[1] == counts[-1]
     assert counts[1] / counts[0] == pytest.approx(2.0, rel=0.02)
+    # The previews every few steps take the coarse level's photons, the final picture the
+    # fine level's.
+    opt.preview_all(h, seed=4)
+    assert opt.n_photons == counts[0]
+    opt.render_all(h, seed=4)
+    assert opt.n_photons == counts[-1]
     single = dataclasses.replace(opt.opt, levels=1)
     assert splat.photons_per_step(single, -1) == splat.photons_per_step(single, 0) == 100_000
 

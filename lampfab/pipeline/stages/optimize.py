@@ -42,7 +42,7 @@ def optimize(build: Build) -> dict:
         artifacts.write_npz(checkpoint, settings_hash=_settings_hash(build, init_heights), **s.to_arrays())
 
     def preview(s):
-        for wall, img in zip(build.walls, optimizer.render_all(s.heights, seed=opt.seed + 1)):
+        for wall, img in zip(build.walls, optimizer.preview_all(s.heights, seed=opt.seed + 1)):
             artifacts.write_png(build.preview_picture(s.step, wall.name), img)
 
     bar = steps_bar(opt.iterations, "optimize", initial=state.step, disable=opt.iterations == 0)
