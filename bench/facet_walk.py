@@ -40,8 +40,7 @@ def measure(build: Path, repeats: int) -> dict:
     import drjit as dr
 
     settings = json.loads((build / "settings.json").read_text())
-    opened = pipeline.Build.open(build, settings["design"]["name"], settings["fabrication"]["name"],
-                                 settings["led"]["name"])
+    opened = pipeline.Build.open(build, *(settings[k]["path"] for k in ("design", "fabrication", "led")))
     opt = opened.design.optimize
     optimizer = opened.optimizer(opt, opened.inner(), opened.targets(opt.sensor_px))
     heights = heights_of(build)
