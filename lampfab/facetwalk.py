@@ -14,7 +14,7 @@ and its intersection as long again).  The walk needs no structure and finds the 
 of a fine step's photons 2.6-3.8 times faster than Mitsuba builds and intersects.
 It gave Mitsuba's facet to 99.97-99.999 % of the photons on the built lenses; the rest
 lie on an edge two facets share, or the walk does not settle on a facet ahead of the
-photon (under 2 in 10⁴, where a ray runs nearly along the surface), and the caller
+photon (under 3 in 10⁴, where a ray runs nearly along the surface), and the caller
 leaves those out (``bench/facet_walk.py``; bench/log/2026-12-07.md).
 
 Faces are numbered as ``closed_outer_mesh`` numbers them: the first triangle of each
