@@ -94,8 +94,7 @@ def main() -> None:
     if args.record:
         import log_section
 
-        print("recorded in", log_section.append(
-            "## The facet walk against Mitsuba's BVH (bench/facet_walk.py)\n\n" + text))
+        log_section.record("## The facet walk against Mitsuba's BVH (bench/facet_walk.py)\n\n" + text)
 
 
 if __name__ == "__main__":

@@ -15,3 +15,8 @@ def append(text: str) -> Path:
     with open(path, "a") as fh:
         fh.write("\n" + text.strip("\n") + "\n")
     return path
+
+
+def record(text: str) -> None:
+    """``append`` ``text`` and say where it went."""
+    print("recorded in", append(text))

@@ -95,9 +95,8 @@ def main() -> None:
     if args.record:
         import log_section
 
-        path = log_section.append("## Which LED lights each part of a picture (bench/neighbour_light.py)\n\n"
-                                  + "\n\n".join(tables))
-        print(f"recorded in {path}")
+        log_section.record("## Which LED lights each part of a picture (bench/neighbour_light.py)\n\n"
+                           + "\n\n".join(tables))
 
 
 if __name__ == "__main__":

@@ -64,9 +64,8 @@ def main() -> None:
     if args.record:
         import log_section
 
-        print("recorded in", log_section.append(
-            f"## How surely the words read (bench/ocr_margin.py, {args.seeds} renders per build)\n\n"
-            + "\n".join(rows)))
+        log_section.record(f"## How surely the words read (bench/ocr_margin.py, {args.seeds} renders per build)\n\n"
+                           + "\n".join(rows))
 
 
 if __name__ == "__main__":

@@ -130,8 +130,7 @@ def main() -> None:
     if args.record:
         import log_section
 
-        print("recorded in", log_section.append(
-            "## The slope projection in a refinement (bench/slope_projection.py)\n\n" + text))
+        log_section.record("## The slope projection in a refinement (bench/slope_projection.py)\n\n" + text)
 
 
 if __name__ == "__main__":

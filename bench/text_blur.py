@@ -65,7 +65,7 @@ def main() -> None:
     if args.record:
         import log_section
 
-        print("recorded in", log_section.append("## What blur text survives (bench/text_blur.py)\n\n" + text))
+        log_section.record("## What blur text survives (bench/text_blur.py)\n\n" + text)
 
 
 if __name__ == "__main__":
