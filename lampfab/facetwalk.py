@@ -85,7 +85,6 @@ def first_hits(mi, o, d, positions, mu: int, mv: int, height_mm: float, radius_m
         # Which edge: opposite corner 0, 1 or 2 of the facet's (k0, k1, k2).
         k = dr.select((b0 <= b1) & (b0 <= b2), 0, dr.select(b1 <= b2, 1, 2))
         i, j, second = _across(mi, i, j, second, k, away, mu, mv)
-    p = o + t * d
     prim = mi.UInt32(i * (mv - 1) + j) + dr.select(second, mi.UInt32(cells), mi.UInt32(0))
     # A ray that reaches a fan's plane inside the fan's rim meets the fan first, in the
     # wedge its angle falls in (the fans' edges are radial; the rim is the grid's first
@@ -93,9 +92,7 @@ def first_hits(mi, o, d, positions, mu: int, mv: int, height_mm: float, radius_m
     up = d.z > 0
     t_cap = (dr.select(up, height_mm, 0.0) - o.z) / d.z
     q = o + t_cap * d
-    u = dr.atan2(q.y, q.x)
-    u = dr.select(u < 0, u + 2.0 * math.pi, u)
-    wedge = dr.clip(mi.Int32(dr.floor(u / du)), 0, mu - 1)
+    wedge = dr.clip(mi.Int32(dr.floor(_angle(q) / du)), 0, mu - 1)
     row = dr.select(up, mv - 1, 0)
     r0 = dr.gather(mi.Point3f, positions, mi.UInt32(wedge * mv + row))
     r1 = dr.gather(mi.Point3f, positions, mi.UInt32(dr.select(wedge + 1 == mu, 0, wedge + 1) * mv + row))
@@ -110,9 +107,7 @@ def _cell_at(mi, p, du, dz, mu, mv):
     (``second``) holds p's (u, z) in the grid's own coordinates."""
     import drjit as dr
 
-    u = dr.atan2(p.y, p.x)
-    u = dr.select(u < 0, u + 2.0 * math.pi, u)
-    fu = u / du
+    fu = _angle(p) / du
     fz = dr.clip(p.z / dz, 0.0, float(mv - 1))
     i = mi.Int32(dr.floor(fu))
     j = dr.clip(mi.Int32(dr.floor(fz)), 0, mv - 2)
@@ -121,6 +116,14 @@ def _cell_at(mi, p, du, dz, mu, mv):
     fz -= mi.Float(j)
     odd = ((i + j) & 1) == 1
     return i, j, dr.select(odd, fz > fu, fu + fz > 1.0)
+
+
+def _angle(p):
+    """The angle of points p around the axis, in [0, 2 pi) (Dr.Jit Float, rad)."""
+    import drjit as dr
+
+    u = dr.atan2(p.y, p.x)
+    return dr.select(u < 0, u + 2.0 * math.pi, u)
 
 
 def _corners(mi, positions, i, j, second, mu, mv):
