@@ -63,10 +63,8 @@ class SplatOptimizer(Optimizer):
         from .trace import MeshScene
 
         self.mi = mitsuba()
-        verts, faces = surface.closed_outer_mesh(self.cyl, heights, self.opt.tessellation)
-        self.n_vertices = len(verts)
-        self.faces = self.mi.UInt32(np.ascontiguousarray(faces, np.uint32).ravel())
         self.fine = surface.fine_shape(*heights.shape, self.opt.tessellation)
+        self.faces = self.mi.UInt32(np.ascontiguousarray(surface.closed_outer_faces(*self.fine), np.uint32).ravel())
         self.radial = surface.radial_dirs(*self.fine)
         self.inner = MeshScene(self.inner_v, self.inner_f[:, ::-1])  # normals into the cavity
         self._photon_key = None
@@ -110,7 +108,8 @@ class SplatOptimizer(Optimizer):
         if self._heights_set is not None and np.array_equal(heights, self._heights_set):
             return
         self._heights_set = heights.copy()
-        verts, _ = surface.closed_outer_mesh(self.cyl, heights, self.opt.tessellation)
+        verts = surface.closed_outer_vertices(self.cyl, heights, self.opt.tessellation)
+        self.n_vertices = len(verts)
         self.positions = self.mi.Float(np.ascontiguousarray(verts, np.float32).ravel())
         # Where the facet walk starts: the mean radius of the surface.
         self.walk_radius_mm = self.cyl.radius_mm + float(heights.mean())
@@ -190,9 +189,8 @@ class SplatOptimizer(Optimizer):
         xf, yf = xf[sel], yf[sel]
         x0, y0 = np.floor(xf), np.floor(yf)
         fx, fy = xf - x0, yf - y0
-        width = fine_cols + 2
-        corner = (y0.astype(np.int64) + 1) * width + x0.astype(np.int64) + 1
-        return _Landed(sel, len(x), corner, fx, fy, np.broadcast_to(weight, x.shape)[sel], width, (rows, cols))
+        corner = (y0.astype(np.int64) + 1) * (fine_cols + 2) + x0.astype(np.int64) + 1
+        return _Landed(sel, len(x), corner, fx, fy, np.broadcast_to(weight, x.shape)[sel], (rows, cols))
 
     @staticmethod
     def _image(landed: "_Landed") -> np.ndarray:
@@ -294,8 +292,12 @@ class _Landed:
     fx: np.ndarray  # (k,) float64: where in that cell, 0-1 across
     fy: np.ndarray  # (k,) float64: and down
     weight: np.ndarray  # (k,) float64: its flux
-    width: int  # the bordered grid's width
     shape: tuple[int, int]  # the image's (rows, cols)
+
+    @property
+    def width(self) -> int:
+        """The bordered grid's width."""
+        return self.shape[1] * SUPERSAMPLE + 2
 
 
 def _jit_float(mi, values: np.ndarray):

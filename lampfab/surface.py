@@ -284,14 +284,24 @@ def cap_faces(mu: int, mv: int, centre_bottom: int, centre_top: int) -> np.ndarr
     return np.concatenate([bottom, top]).astype(np.int64)
 
 
+def closed_outer_faces(mu: int, mv: int) -> np.ndarray:
+    """The faces of ``closed_outer_mesh`` on a (mu, mv) vertex grid: the grid's, then
+    the fans to the two centre vertices after it; (F, 3) int64."""
+    return np.vstack([grid_faces(mu, mv), cap_faces(mu, mv, mu * mv, mu * mv + 1)])
+
+
+def closed_outer_vertices(cyl: Cylinder, heights: np.ndarray, tessellation: int) -> np.ndarray:
+    """The vertices of ``closed_outer_mesh``: the tessellation's grid, then the two fans'
+    centres on the axis; (mu * mv + 2, 3) float64 mm."""
+    fine = sample(cyl, heights, *fine_shape(*heights.shape, tessellation))
+    centres = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, cyl.height_mm]])
+    return np.vstack([points(cyl, fine).reshape(-1, 3), centres])
+
+
 def closed_outer_mesh(cyl: Cylinder, heights: np.ndarray, tessellation: int) -> tuple[np.ndarray, np.ndarray]:
     """The outer surface closed by flat caps at z = 0 and z = height: a closed mesh (mm)."""
-    verts, faces = outer_mesh(cyl, heights, tessellation)
-    mu, mv = fine_shape(*heights.shape, tessellation)
-    n = len(verts)
-    centres = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, cyl.height_mm]])
-    caps = cap_faces(mu, mv, n, n + 1)
-    return np.vstack([verts, centres]), np.vstack([faces, caps])
+    return (closed_outer_vertices(cyl, heights, tessellation),
+            closed_outer_faces(*fine_shape(*heights.shape, tessellation)))
 
 
 def radius_derivatives(cyl: Cylinder, heights: np.ndarray, mu: int, mv: int, order: int = 2,

@@ -50,13 +50,14 @@ def first_hits(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray,
     distance along the unit direction, mm).  numpy in and out; Mitsuba's BVH in between."""
     scene = MeshScene(vertices, faces)
     mi = scene.mi
-
-    def jit(cls, a):
-        return cls(*[mi.Float(np.ascontiguousarray(a[:, k], np.float32)) for k in range(3)])
-
-    si = scene.scene.ray_intersect(mi.Ray3f(jit(mi.Point3f, origins), jit(mi.Vector3f, directions)),
+    si = scene.scene.ray_intersect(mi.Ray3f(to_jit(mi, mi.Point3f, origins), to_jit(mi, mi.Vector3f, directions)),
                                    mi.RayFlags.Minimal, False)
     return si.is_valid().numpy(), si.prim_index.numpy().astype(np.int64), si.t.numpy().astype(np.float64)
+
+
+def to_jit(mi, cls, a: np.ndarray):
+    """(n, 3) points or directions as a Dr.Jit 3-vector array of ``cls`` (float32)."""
+    return cls(*(mi.Float(np.ascontiguousarray(a[:, k], np.float32)) for k in range(3)))
 
 
 def to_numpy(v) -> np.ndarray:

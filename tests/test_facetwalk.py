@@ -23,12 +23,9 @@ def _rays(rng, n):
 
 
 def _walk(mi, verts, cyl, heights, shape, origins, directions):
-    def jit(cls, a):
-        return cls(*[mi.Float(np.ascontiguousarray(a[:, k], np.float32)) for k in range(3)])
-
-    positions = jit(mi.Point3f, verts)
-    hit, settled = facetwalk.first_hits(mi, jit(mi.Point3f, origins), jit(mi.Vector3f, directions), positions,
-                                        *shape, cyl.height_mm, cyl.radius_mm + float(heights.mean()))
+    hit, settled = facetwalk.first_hits(mi, trace.to_jit(mi, mi.Point3f, origins), trace.to_jit(mi, mi.Vector3f, directions),
+                                        trace.to_jit(mi, mi.Point3f, verts), *shape, cyl.height_mm,
+                                        cyl.radius_mm + float(heights.mean()))
     return hit.numpy().astype(np.int64), settled.numpy()
 
 
