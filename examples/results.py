@@ -4,7 +4,7 @@ from the current code, in one run.
 
     .venv/bin/python examples/results.py             # every case: about 1.5 hours on 2 cores
     .venv/bin/python examples/results.py apple text  # only these cases
-    .venv/bin/python examples/results.py --from-export  # export and verify again on every build there is
+    .venv/bin/python examples/results.py --reports   # plan, export and verify again on every build there is
 
 Each case is one fresh `make lamp` into build/results/<name> (its wall time measured
 around make), then examples/figures.py's pictures, then the tables between the
@@ -99,23 +99,27 @@ def _edited_profile(case: Case) -> Path:
     return path
 
 
-def run(case: Case, from_export: bool = False) -> float:
-    """A fresh make lamp of ``case`` (or, ``from_export``, its export and verify stages
-    again on the build there is); its wall time in seconds, kept for the tables only for
-    a fresh one."""
+# The stages that only measure or write out a design: run again after a change to them
+# alone, they leave every build's heightmap as it is.
+REPORT_STAGES = ("20_plan", "60_export", "70_verify")
+
+
+def run(case: Case, reports: bool = False) -> float:
+    """A fresh make lamp of ``case`` (or, ``reports``, its ``REPORT_STAGES`` again on the
+    build there is); its wall time in seconds, kept for the tables only for a fresh one."""
     if case.sample:
         from skimage import data, io
 
         INPUTS.mkdir(parents=True, exist_ok=True)
         io.imsave(INPUTS / f"{case.sample}.png", getattr(data, case.sample)(), check_contrast=False)
     profile = (f"PROFILE={_edited_profile(case)}",) if case.edit else ()
-    if from_export:
+    if reports:
         # The stages themselves, not make: make would redo the whole build when the
         # resolved profiles changed since it was made.
         given = dict(v.split("=", 1) for v in (*case.make, *profile))
         options = [f"--{key.lower()}={given[key]}" for key in ("PROFILE", "FAB", "LED") if key in given]
         commands = [[sys.executable, f"stages/{stage}.py", "--out", str(BUILDS / case.name), *options]
-                    for stage in ("60_export", "70_verify")]
+                    for stage in REPORT_STAGES]
     else:
         shutil.rmtree(BUILDS / case.name, ignore_errors=True)
         commands = [["make", "--no-print-directory", "lamp", f"BUILD={BUILDS}", f"NAME={case.name}", *case.make,
@@ -126,7 +130,7 @@ def run(case: Case, from_export: bool = False) -> float:
         if done.returncode:
             sys.exit(f"{command[1]} for {case.name} failed:\n{done.stdout[-3000:]}{done.stderr[-3000:]}")
     seconds = time.monotonic() - t0
-    if not from_export:
+    if not reports:
         (BUILDS / case.name / "make_seconds.txt").write_text(f"{seconds:.1f}\n")
     return seconds
 
@@ -258,9 +262,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("names", nargs="*", help=f"cases to run (default: all of {', '.join(c.name for c in CASES)})")
     parser.add_argument("--tables-only", action="store_true", help="rewrite the tables from the builds there are")
-    parser.add_argument("--from-export", action="store_true",
-                        help="run only export and verify again on the builds there are (after a change to those "
-                             "stages alone: the designs stay the same); the tables keep each build's make time")
+    parser.add_argument("--reports", action="store_true",
+                        help="run only plan, export and verify again on the builds there are (after a change to "
+                             "those stages alone: the designs stay the same); the tables keep each build's make time")
     args = parser.parse_args()
     unknown = set(args.names) - {c.name for c in CASES}
     if unknown:
@@ -269,10 +273,10 @@ def main() -> None:
         for case in CASES:
             if args.names and case.name not in args.names:
                 continue
-            seconds = run(case, args.from_export)
+            seconds = run(case, args.reports)
             # A point-light design is pictured only beside its LED design, below.
             made = "" if case.before else f" -> {figures.figure(case.name, BUILDS)}"
-            stages = "export and verify" if args.from_export else "make lamp"
+            stages = "plan, export and verify" if args.reports else "make lamp"
             print(f"{case.name}: {stages} {seconds / 60:.1f} min{made}",
                   flush=True)
     pairs = [(c.name, c.before) for c in CASES if c.before]

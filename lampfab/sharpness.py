@@ -57,6 +57,10 @@ MIN_VARIANCE_PX2 = 0.01
 # spread: 4 sigma is a uniform disc's diameter (sigma = d / 4).
 DIAMETER_SIGMAS = 4.0
 
+# ``blur`` spreads a pixel's light this many standard deviations out: what lies farther
+# is under 4e-6 of it.
+BLUR_TRUNCATE_SIGMAS = 5.0
+
 
 class Cells:
     """The outer surface's cells: ``CELLS_U`` around (angle about the lamp axis) by
@@ -186,21 +190,25 @@ class Kernels:
 def blur(image: np.ndarray, field_mm2: np.ndarray, wall: Wall) -> np.ndarray:
     """``image`` (rows, cols) on ``wall`` with each pixel's light spread by the
     Gaussian of its own kernel (``field_mm2`` (rows, cols, 3), ``Kernels.field``):
-    (rows, cols) float64, the same total light less what spreads past the edges."""
+    (rows, cols) float64, the same total light less what spreads past the picture's
+    edges (a lamp's light there lands on the wall outside the picture: lost to it)."""
     img = np.asarray(image, np.float64)
     rows, cols = img.shape
     sx, sy = wall.width_mm / cols, wall.height_mm / rows
-    yy, xx = np.mgrid[0:rows, 0:cols]
-    out = np.zeros(rows * cols)
+    out = np.zeros((rows, cols))
     for (i, j), value in np.ndenumerate(img):
         if value == 0:
             continue
         a, b, c = field_mm2[i, j]
-        inv = np.linalg.inv(_psd_px(np.array([[a / sx**2, c / (sx * sy)], [c / (sx * sy), b / sy**2]])))
-        dx, dy = xx - j, yy - i
+        cov = _psd_px(np.array([[a / sx**2, c / (sx * sy)], [c / (sx * sy), b / sy**2]]))
+        inv = np.linalg.inv(cov)
+        r = int(np.ceil(BLUR_TRUNCATE_SIGMAS * np.sqrt(np.linalg.eigvalsh(cov)[-1])))
+        dy, dx = np.mgrid[-r:r + 1, -r:r + 1]
         g = np.exp(-0.5 * (inv[0, 0] * dx * dx + 2 * inv[0, 1] * dx * dy + inv[1, 1] * dy * dy))
-        out += value * (g / g.sum()).ravel()
-    return out.reshape(rows, cols)
+        g *= value / g.sum()
+        top, bottom, left, right = max(i - r, 0), min(i + r + 1, rows), max(j - r, 0), min(j + r + 1, cols)
+        out[top:bottom, left:right] += g[top - i + r:bottom - i + r, left - j + r:right - j + r]
+    return out
 
 
 def _psd(cov: np.ndarray) -> np.ndarray:

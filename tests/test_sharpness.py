@@ -54,6 +54,21 @@ def test_an_even_field_blurs_like_a_gaussian_and_keeps_the_light(rng):
     assert np.abs(out - gaussian_filter(image, sigma_px, mode="constant", truncate=8)).max() < 0.02
 
 
+def test_light_blurred_past_the_edges_is_lost():
+    """A lamp's light blurred past the picture's edge lands on the wall outside it: a
+    bright picture's border comes out darker than its middle, as zero padding gives."""
+    rows, cols = 24, 32
+    image = np.ones((rows, cols))
+    sigma_px = 1.5
+    field = np.zeros((rows, cols, 3))
+    field[..., 0] = (sigma_px * WALL.width_mm / cols) ** 2
+    field[..., 1] = (sigma_px * WALL.height_mm / rows) ** 2
+    out = sharpness.blur(image, field, WALL)
+    expected = gaussian_filter(image, sigma_px, mode="constant", truncate=8)
+    assert np.abs(out - expected).max() < 0.02
+    assert out[0, 0] < 0.45 and out[rows // 2, cols // 2] == pytest.approx(1.0, abs=1e-3)
+
+
 @pytest.fixture(scope="module")
 def plain(mi):
     """A plain lens (outer radius 45 mm) with the bundled inner layer, its light, and the

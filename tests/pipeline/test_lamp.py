@@ -265,6 +265,31 @@ def test_the_default_leds_face_their_walls_and_light_each_picture_top_to_bottom(
 
 @pytest.mark.slow
 @pytest.mark.e2e
+def test_the_slots_benchmark_stops_light_only_inside_the_glass(lamp):
+    """bench/slots.py on the made lamp: with its black half-planes at the sectors' edges
+    the same photons put less light on the walls, and less of it reflected inside the
+    lens."""
+    import importlib.util
+
+    from lampfab import fins, verify
+
+    spec = importlib.util.spec_from_file_location("slots_bench", ROOT / "bench" / "slots.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    out = lamp[0]
+    loaded = verify.load(out / "design.json")
+    made = bench.measure(loaded, 400_000, 3)
+    fins.stops = bench.slot_stops(20.0, 90.0)
+    try:
+        slotted = bench.measure(loaded, 400_000, 3)
+    finally:
+        fins.stops = bench._FINS_ONLY
+    assert sum(w["share"] for w in slotted) < sum(w["share"] for w in made)
+    assert sum(w["share"] * w["ghost"] for w in slotted) < sum(w["share"] * w["ghost"] for w in made)
+
+
+@pytest.mark.slow
+@pytest.mark.e2e
 def test_floor_and_per_wall_targets(tmp_path, tiny_with):
     """A fourth surface, the floor behind the lamp, and an image of its own on the floor
     (the right way round) and on the left wall."""
