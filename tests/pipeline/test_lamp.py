@@ -265,7 +265,7 @@ def test_the_default_leds_face_their_walls_and_light_each_picture_top_to_bottom(
 
 @pytest.mark.slow
 @pytest.mark.e2e
-def test_the_slots_benchmark_stops_light_only_inside_the_glass(lamp):
+def test_the_slots_benchmark_stops_light_reflected_inside_the_glass(lamp):
     """bench/slots.py on the made lamp: with its black half-planes at the sectors' edges
     the same photons put less light on the walls, and less of it reflected inside the
     lens."""
