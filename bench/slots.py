@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """What black-filled slots at the lens's sector edges would change, measured on made lenses.
 
-    .venv/bin/python bench/slots.py build/apple [build/horse ...] [--floors 20,25,30] [--photons 32000000]
+    .venv/bin/python bench/slots.py build/apple [build/horse ...] [--floors 20,25,30] [--reach 30] [--photons 32000000]
 
 About 4 % of the light is reflected back into the glass where it leaves the outer
 surface.  Near the edge of a wall's sector part of it runs on through the glass as a
@@ -15,8 +15,9 @@ or painted black, would stop those chords.
 This script traces each build's exported STL with its LED as verify does (stratified
 photons, 64 px), once as made and once for each floor radius with the slots modelled as
 black half-planes at the sectors' edges (design.json's walls; the fins' azimuths), from
-the floor outwards and 5 mm short of the base and the top, that end the light inside the
-lens (never the light on its way to a wall).  They take no glass away, so the light a
+the floor outwards (to ``--reach`` mm from the axis: a slot open to the hollow instead,
+which leaves the outer surface whole) and 5 mm short of the base and the top, that end
+the light inside the lens (never the light on its way to a wall).  They take no glass away, so the light a
 real slot's width (about a millimetre) would take from the outer surface beside each
 edge is not counted.  Per wall: its share of the emitted light, the light reflected
 inside the lens, and the LED render's r and SSIM against the target.
@@ -40,10 +41,10 @@ MARGIN_MM = 5.0  # glass left whole above the base and below the top, where the 
 _FINS_ONLY = fins.stops
 
 
-def slot_stops(floor_mm: float, height_mm: float):
+def slot_stops(floor_mm: float, height_mm: float, reach_mm: float = float("inf")):
     """``fins.stops`` with black half-planes at the fins' azimuths added, from
-    ``floor_mm`` out and ``MARGIN_MM`` inside the base and the top, for the rays that
-    meet the lens again (``t_max`` finite: inside the glass or its hollow)."""
+    ``floor_mm`` out to ``reach_mm`` and ``MARGIN_MM`` inside the base and the top, for
+    the rays that meet the lens again (``t_max`` finite: inside the glass or its hollow)."""
     def stops(mi, source, o, d, t_max=None):
         import drjit as dr
 
@@ -56,7 +57,7 @@ def slot_stops(floor_mm: float, height_mm: float):
             t = -dr.dot(o, across) / dr.dot(d, across)  # the half-plane through the lamp's axis
             hit = o + t * d
             reach = dr.dot(hit, along)
-            stopped |= ((t > 0) & (t < t_max) & dr.isfinite(t_max) & (reach >= floor_mm)
+            stopped |= ((t > 0) & (t < t_max) & dr.isfinite(t_max) & (reach >= floor_mm) & (reach <= reach_mm)
                         & (hit.z >= MARGIN_MM) & (hit.z <= height_mm - MARGIN_MM))
         return stopped
 
@@ -78,6 +79,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("builds", nargs="+", type=Path)
     parser.add_argument("--floors", default="20,25,30", help="slot floors to try, mm from the axis (comma-separated)")
+    parser.add_argument("--reach", type=float, default=float("inf"),
+                        help="how far out the slots reach, mm from the axis (default: through the outer surface)")
     parser.add_argument("--photons", type=float, default=32e6)
     parser.add_argument("--seed", type=int, default=11)
     args = parser.parse_args()
@@ -90,9 +93,10 @@ def main() -> None:
         height = float(loaded.vertices[:, 2].max())
         rows = [("as made", measure(loaded, int(args.photons), args.seed))]
         for floor in floors:
-            fins.stops = slot_stops(floor, height)
+            fins.stops = slot_stops(floor, height, args.reach)
+            span = f"from {floor:g} mm" + ("" if np.isinf(args.reach) else f" to {args.reach:g} mm")
             try:
-                rows.append((f"slots from {floor:g} mm", measure(loaded, int(args.photons), args.seed)))
+                rows.append((f"slots {span}", measure(loaded, int(args.photons), args.seed)))
             finally:
                 fins.stops = _FINS_ONLY
         print(f"\n{build}: {args.photons / 1e6:.0f} M photons with its LED; per wall (front / left / right): "
