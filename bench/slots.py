@@ -26,6 +26,7 @@ inside the lens, and the LED render's r and SSIM against the target.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 
@@ -64,6 +65,16 @@ def slot_stops(floor_mm: float, height_mm: float, reach_mm: float = float("inf")
     return stops
 
 
+@contextlib.contextmanager
+def slotted(floor_mm: float, height_mm: float, reach_mm: float = float("inf")):
+    """Within it, every trace stops light at the slots (``slot_stops``) as well as at the fins."""
+    fins.stops = slot_stops(floor_mm, height_mm, reach_mm)
+    try:
+        yield
+    finally:
+        fins.stops = _FINS_ONLY
+
+
 def measure(loaded: verify.Loaded, photons: int, seed: int) -> list[dict]:
     """Per wall of the made lens traced with its LED: its share of the emitted light, the
     share of that reflected inside the lens, r and SSIM against the target."""
@@ -95,12 +106,9 @@ def main() -> None:
         height = float(loaded.vertices[:, 2].max())
         rows = [("as made", measure(loaded, int(args.photons), args.seed))]
         for floor in floors:
-            fins.stops = slot_stops(floor, height, args.reach)
             span = f"from {floor:g} mm" + ("" if np.isinf(args.reach) else f" to {args.reach:g} mm")
-            try:
+            with slotted(floor, height, args.reach):
                 rows.append((f"slots {span}", measure(loaded, int(args.photons), args.seed)))
-            finally:
-                fins.stops = _FINS_ONLY
         print(f"\n{build}: {args.photons / 1e6:.0f} M photons with its LED; per wall (front / left / right): "
               "share of the light, reflected inside the lens, r, SSIM")
         print("| lens | light on the walls | reflected inside | LED r | LED SSIM |")

@@ -264,13 +264,6 @@ def grid_faces(mu: int, mv: int) -> np.ndarray:
     return np.concatenate([t1, t2]).astype(np.int64)
 
 
-def outer_mesh(cyl: Cylinder, heights: np.ndarray, tessellation: int) -> tuple[np.ndarray, np.ndarray]:
-    """Tessellated outer surface: ((mu*mv, 3) float64 mm vertices, (F, 3) int64 faces)."""
-    mu, mv = fine_shape(*heights.shape, tessellation)
-    fine = sample(cyl, heights, mu, mv)
-    return points(cyl, fine).reshape(-1, 3), grid_faces(mu, mv)
-
-
 def cap_faces(mu: int, mv: int, centre_bottom: int, centre_top: int) -> np.ndarray:
     """Fans closing the bottom (z=0) and top rims of a (mu, mv) vertex grid (index
     i * mv + j) to two centre vertices: (2 * mu, 3) int64 faces.

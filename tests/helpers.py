@@ -3,8 +3,10 @@ a user runs them, and a small lens (CYL, bumps, inner) for the solid, STEP and
 fabrication tests.  Fixtures are in conftest.py."""
 
 import contextlib
+import importlib.util
 import io
 import os
+import sys
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +27,15 @@ TINY_LED = profile.DEFAULT_LED
 # every build the tests make.
 _MAKE_VARIABLES = ("TARGET", "TEXT", "PANORAMA", "NAME", "PROFILE", "FAB", "ALLOW_FAIL", "BUILD",
                    "TARGET_FRONT", "TARGET_LEFT", "TARGET_RIGHT", "TARGET_FLOOR", "LED")
+
+
+def load_bench(name: str):
+    """A script of bench/ imported as a module (bench/ is no package)."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / "bench" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
 
 
 def make(*args) -> subprocess.CompletedProcess:

@@ -2,20 +2,10 @@
 bench/slope_projection.py replays a refinement's slope projections under two solvers."""
 
 import dataclasses
-import importlib.util
-import sys
 
 import pytest
 
-from tests.helpers import ROOT
-
-
-def _load(name: str = "bench_methods"):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "bench" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+from tests.helpers import ROOT, load_bench
 
 
 def test_the_source_method_runs_with_the_default_posts_leds(tmp_path, tiny_profile):
@@ -24,7 +14,7 @@ def test_the_source_method_runs_with_the_default_posts_leds(tmp_path, tiny_profi
     from lampfab import optimize, pipeline
     from lampfab.errors import LampfabError
 
-    bench = _load()
+    bench = load_bench("bench_methods")
     build = pipeline.Build.open(tmp_path / "b", str(tiny_profile), "sla_resin", "post3535")
     pipeline.prepare(build, str(ROOT / "examples" / "apple.png"), {})
     inner = build.inner()
@@ -44,7 +34,7 @@ def test_the_slope_projection_benchmark_replays_under_both_solvers(cyl):
 
     from lampfab import limits
 
-    bench = _load("slope_projection")
+    bench = load_bench("slope_projection")
     heights = np.zeros((64, 17))
     heights[10:14, 6:10] = 8.0                          # far steeper than 45°
     calls = [((cyl, heights, 45.0), {}), ((cyl, heights * 0.5, 45.0), {"max_overhang_deg": 45.0})]
@@ -63,7 +53,7 @@ def test_the_ssim_regions_split_a_wall_and_find_a_veil_on_its_black():
 
     from lampfab import metrics
 
-    bench = _load("ssim_regions")
+    bench = load_bench("ssim_regions")
     y, x = np.mgrid[0:48, 0:64]
     target = np.clip((16 - np.hypot(x - 32, y - 24)) / 4, 0, 1)  # a flat bright disc, a soft rim, black around
     masks = bench.regions(target)
@@ -85,7 +75,7 @@ def test_the_facet_walk_benchmark_finds_the_facets_mitsuba_finds(tmp_path, tiny_
 
     from lampfab import pipeline
 
-    bench = _load("facet_walk")
+    bench = load_bench("facet_walk")
     build = pipeline.Build.open(tmp_path / "b", str(tiny_profile), "sla_resin", "post3535")
     apple = str(ROOT / "examples" / "apple.png")
     pipeline.snapshot(build, {"all": apple})

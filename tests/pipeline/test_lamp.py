@@ -12,7 +12,7 @@ from PIL import Image
 
 from lampfab import solid
 from lampfab.export import stl
-from tests.helpers import ROOT, TINY_LED, cli, make
+from tests.helpers import ROOT, TINY_LED, cli, load_bench, make
 
 REPORTS = ["prepare", "plan", "init", "optimize", "solid", "checks", "export", "verify"]
 
@@ -269,21 +269,13 @@ def test_the_slots_benchmark_stops_light_reflected_inside_the_glass(lamp):
     """bench/slots.py on the made lamp: with its black half-planes at the sectors' edges
     the same photons put less light on the walls, and less of it reflected inside the
     lens."""
-    import importlib.util
+    from lampfab import verify
 
-    from lampfab import fins, verify
-
-    spec = importlib.util.spec_from_file_location("slots_bench", ROOT / "bench" / "slots.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
-    out = lamp[0]
-    loaded = verify.load(out / "design.json")
+    bench = load_bench("slots")
+    loaded = verify.load(lamp[0] / "design.json")
     made = bench.measure(loaded, 400_000, 3)
-    fins.stops = bench.slot_stops(20.0, 90.0)
-    try:
+    with bench.slotted(20.0, 90.0):
         slotted = bench.measure(loaded, 400_000, 3)
-    finally:
-        fins.stops = bench._FINS_ONLY
     assert sum(w["share"] for w in slotted) < sum(w["share"] for w in made)
     assert sum(w["share"] * w["ghost"] for w in slotted) < sum(w["share"] * w["ghost"] for w in made)
 
