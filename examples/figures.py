@@ -70,24 +70,25 @@ def figure(name: str, builds: Path = ROOT / "build") -> Path:
     return out
 
 
-def before_after(pairs: list[tuple[str, str]], builds: Path = ROOT / "build", wall: str = "front") -> Path:
-    """examples/results/led_design.png: per (point-light design, LED-aware design) pair of
-    build names, ``wall``'s target and what the LED draws through each lens (both seen
-    with the LED)."""
+def before_after(pairs: list[tuple[str, str]], builds: Path = ROOT / "build", wall: str = "front",
+                 labels: tuple[str, str] = ("point design", "LED design"), name: str = "led_design") -> Path:
+    """examples/results/<name>.png: per (before, after) pair of build names (the
+    point-light design and the LED-aware one; a lens without slots and with them), ``wall``'s target
+    and what the LED draws through each lens, captioned with ``labels``."""
 
-    def seen(name: str, design: str) -> Image.Image:
-        f = json.loads((builds / name / "verify.json").read_text())["figures"]["walls"][wall]
+    def seen(build: str, label: str) -> Image.Image:
+        f = json.loads((builds / build / "verify.json").read_text())["figures"]["walls"][wall]
         words = f", {f['led_words_read']}/{f['words']} words" if "words" in f else ""
-        return tile(builds / name / "verify" / f"{wall}_led.png", f"{design} design: SSIM {f['led_ssim']:.2f}{words}")
+        return tile(builds / build / "verify" / f"{wall}_led.png", f"{label}: SSIM {f['led_ssim']:.2f}{words}")
 
     rows = [[tile(builds / after / "targets" / f"{wall}_preview.png", f"target ({wall})"),
-             seen(before, "point"), seen(after, "LED")] for before, after in pairs]
+             seen(before, labels[0]), seen(after, labels[1])] for before, after in pairs]
     height = max(t.height for row in rows for t in row) + 4
     sheet = Image.new("L", (3 * (TILE + 4), height * len(rows)), 0)
     for y, row in enumerate(rows):
         for i, t in enumerate(row):
             sheet.paste(t, (i * (TILE + 4), y * height))
-    out = RESULTS / "led_design.png"
+    out = RESULTS / f"{name}.png"
     sheet.save(out)
     return out
 

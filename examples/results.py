@@ -14,7 +14,9 @@ reports (a case not run this time keeps the figures its last build left, and one
 no build here the row the page has).  scikit-image's
 samples are written to build/results/inputs.  The ``*_point_design`` cases design the
 same lamps for the ideal point light (a copy of the default profile), for the
-before-and-after picture examples/results/led_design.png and its table.
+before-and-after picture examples/results/led_design.png and its table; the
+``*_slotted`` cases make them with black-filled slots, for examples/results/slots.png and
+its table.
 """
 
 from __future__ import annotations
@@ -44,12 +46,13 @@ class Case:
     make: tuple[str, ...]       # make's variables
     sample: str = ""            # a scikit-image sample the case reads from INPUTS
     tables: tuple[str, ...] = ("summary", "full", "times", "reflections")  # the tables it is a row of
-    before: str = ""            # the case this one is the point-light design of (LED-aware design's "before")
+    variant_of: str = ""        # the default case this one changes one thing of (a before-and-after table's pair)
     edit: tuple[str, str] = ()  # (line, its replacement): the default profile with that line changed
 
 
 # The default profile designing for the ideal point light, and a flat LED facing up where it serves best.
 POINT_DESIGN = ('design_light = "led"', 'design_light = "point"')
+SLOTTED = ("slot_width_mm = 0.0", "slot_width_mm = 1.0")
 LOW_LIGHT = ("light_height_mm = 45.0", "light_height_mm = 15.0")
 
 
@@ -78,12 +81,20 @@ CASES = (
     Case("apple_cnc3", "the apple milled on 3 axes (FAB=acrylic_cnc3)", ("TARGET=examples/apple.png",
                                                                          "FAB=acrylic_cnc3"), tables=("milled", "times")),
     # The same lamps designed for the ideal point light, as before the design knew the LED.
-    Case("apple_point_design", "", ("TARGET=examples/apple.png",), tables=("led_design",), before="apple",
+    Case("apple_point_design", "", ("TARGET=examples/apple.png",), tables=("led_design",), variant_of="apple",
          edit=POINT_DESIGN),
-    Case("text_point_design", "", ("TEXT=Sweet dreams little one",), tables=("led_design",), before="text",
+    Case("text_point_design", "", ("TEXT=Sweet dreams little one",), tables=("led_design",), variant_of="text",
          edit=POINT_DESIGN),
     Case("camera_point_design", "", (f"TARGET={INPUTS / 'camera.png'}",), "camera", tables=("led_design",),
-         before="camera", edit=POINT_DESIGN),
+         variant_of="camera", edit=POINT_DESIGN),
+    # The same lamps with black-filled slots at the sectors' edges (slot_width_mm 1).
+    *(Case(f"{name}_slotted", "", make, sample, tables=("slots",), variant_of=name, edit=SLOTTED)
+      for name, make, sample in (("apple", ("TARGET=examples/apple.png",), ""),
+                                 ("star", ("TARGET=examples/star.png",), ""),
+                                 ("horse", ("TARGET=examples/horse.png",), ""),
+                                 ("text", ("TEXT=Sweet dreams little one",), ""),
+                                 ("camera", (f"TARGET={INPUTS / 'camera.png'}",), "camera"),
+                                 ("portrait", ("TARGET=examples/portrait.png",), ""))),
 )
 
 def _edited_profile(case: Case) -> Path:
@@ -170,6 +181,8 @@ def _row(case: Case, table: str) -> str | None:
     walls = list(r["verify"]["figures"]["walls"].values())
     if table == "led_design":
         return _before_after_row(case, walls)
+    if table == "slots":
+        return _slots_row(case, walls)
     if table == "reflections":
         if not all("led_ssim_ceiling" in w for w in walls):
             return None
@@ -202,22 +215,46 @@ def _row(case: Case, table: str) -> str | None:
             f"{r['stage_seconds']:.0f} s / {minutes} |")
 
 
+def _walls_of(name: str) -> list[dict] | None:
+    r = _reports(name)
+    return list(r["verify"]["figures"]["walls"].values()) if "verify" in r else None
+
+
+def _figures(walls: list[dict], prefix: str) -> str:
+    return f"{_span([w[prefix + 'pearson'] for w in walls])} / {_span([w[prefix + 'ssim'] for w in walls], 2)}"
+
+
+def _read(walls: list[dict]) -> str:
+    return ", ".join(f"{w['led_words_read']}/{w['words']}" for w in walls if "words" in w) or "—"
+
+
 def _before_after_row(case: Case, before: list[dict]) -> str | None:
     """A row of the led_design table: ``case`` (the point-light design) against the
     LED-aware design it is the "before" of."""
-    r = _reports(case.before)
-    if "verify" not in r:
+    after = _walls_of(case.variant_of)
+    if after is None:
         return None
-    after = list(r["verify"]["figures"]["walls"].values())
+    return (f"| {case.variant_of} | {_figures(before, 'led_')} | {_figures(after, 'led_')} | {_read(before)} | "
+            f"{_read(after)} | {_figures(before, '')} | {_figures(after, '')} |")
 
-    def figures(walls, prefix):
-        return f"{_span([w[prefix + 'pearson'] for w in walls])} / {_span([w[prefix + 'ssim'] for w in walls], 2)}"
 
-    def read(walls):
-        return ", ".join(f"{w['led_words_read']}/{w['words']}" for w in walls if "words" in w) or "—"
+def _slots_row(case: Case, after: list[dict]) -> str | None:
+    """A row of the slots table: the default case ``case`` is a variant of, then ``case``
+    (the same image with black-filled slots), each with the LED."""
+    before = _walls_of(case.variant_of)
+    if before is None:
+        return None
 
-    return (f"| {case.before} | {figures(before, 'led_')} | {figures(after, 'led_')} | {read(before)} | "
-            f"{read(after)} | {figures(before, '')} | {figures(after, '')} |")
+    def each(walls, key, digits=3):
+        return " / ".join(f"{w[key]:.{digits}f}" for w in walls)
+
+    minutes = _reports(case.name)["make_seconds"]
+    return (f"| {case.variant_of} | {each(before, 'led_ssim')} | {each(after, 'led_ssim')} | "
+            f"{each(after, 'led_reference_ssim')} | {_span([w['led_pearson'] for w in before])} → "
+            f"{_span([w['led_pearson'] for w in after])} | {_span([100 * w['ghost_share'] for w in before], 1)} → "
+            f"{_span([100 * w['ghost_share'] for w in after], 1)} % | {sum(w['led_share'] for w in before):.0%} → "
+            f"{sum(w['led_share'] for w in after):.0%} | {_read(before)} → {_read(after)} | "
+            f"{(minutes or 0) / 60:.1f} min |")
 
 
 _SHORT = ("| {first} | what it is | with the LED: r / SSIM | ideal point light: r / SSIM | LED blur (across x up) "
@@ -236,6 +273,9 @@ TABLES = {
     "led_design": ("| image | with the LED, lens designed for a point: r / SSIM | ... designed for the LED | OCR with the LED, "
                    "designed for a point | ... for the LED | ideal point light, designed for a point | ... for the LED |\n"
                    "|---|---|---|---|---|---|---|"),
+    "slots": ("| image | SSIM with the LED, front / left / right: no slots | with slots | the target blurred by the "
+              "LED (with slots) | r with the LED | light reflected inside the lens | light on the walls | OCR with the "
+              "LED | `make lamp` with slots |\n|---|---|---|---|---|---|---|---|---|"),
 }
 
 
@@ -250,7 +290,7 @@ def write_tables(paths=PAGES) -> None:
             on_page = re.search(rf"<!-- results:{name} -->\n(.*?)<!-- /results:{name} -->", text, flags=re.S)
             kept = {line.split("|")[1].strip(): line for line in (on_page.group(1) if on_page else "").splitlines()
                     if line.startswith("| ")}
-            rows = [row for row in (_row(c, name) or kept.get(c.before if name == "led_design" else c.name)
+            rows = [row for row in (_row(c, name) or kept.get(c.variant_of or c.name)
                                     for c in CASES if name in c.tables) if row]
             block = "\n".join([head, *rows])
             text = re.sub(rf"(<!-- results:{name} -->\n).*?(<!-- /results:{name} -->)",
@@ -274,17 +314,20 @@ def main() -> None:
             if args.names and case.name not in args.names:
                 continue
             seconds = run(case, args.reports)
-            # A point-light design is pictured only beside its LED design, below.
-            made = "" if case.before else f" -> {figures.figure(case.name, BUILDS)}"
+            # A variant is pictured only beside its default case, below.
+            made = "" if case.variant_of else f" -> {figures.figure(case.name, BUILDS)}"
             stages = "plan, export and verify" if args.reports else "make lamp"
             print(f"{case.name}: {stages} {seconds / 60:.1f} min{made}",
                   flush=True)
-    pairs = [(c.name, c.before) for c in CASES if c.before]
-    if all((BUILDS / n / "verify.json").exists() for pair in pairs for n in pair):
-        print(f"before and after: {figures.before_after(pairs, BUILDS)}")
-    else:
-        print("before and after: examples/results/led_design.png kept (it needs every *_point_design case "
-              "and its LED design built here)")
+    for table, labels in (("led_design", ("point design", "LED design")), ("slots", ("no slots", "slots"))):
+        # Each picture's rows: (before, after) builds.
+        pairs = [(c.name, c.variant_of) if table == "led_design" else (c.variant_of, c.name)
+                 for c in CASES if table in c.tables]
+        if all((BUILDS / n / "verify.json").exists() for pair in pairs for n in pair):
+            print(f"before and after: {figures.before_after(pairs, BUILDS, labels=labels, name=table)}")
+        else:
+            print(f"before and after: examples/results/{table}.png kept (it needs every case of its table "
+                  "and its default case built here)")
     write_tables()
 
 

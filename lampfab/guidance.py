@@ -86,10 +86,28 @@ def paint(paint_json: dict) -> str:
             f"which would otherwise lie as a faint haze over the pictures. verify traced the lens painted so.")
 
 
+def slots(paint_json: dict) -> str:
+    """The paragraph on filling the black slots (design.json's lens ``slots``), or nothing."""
+    from .slots import Slots
+
+    cut = Slots.from_json(paint_json.get("slots"))
+    if cut is None:
+        return ""
+    where = ", ".join(f"{s.azimuth_deg:g}" for s in cut.slots)
+    return (f"Fill the {len(cut.slots)} slots that open in the base ({cut.width_mm:g} mm wide, "
+            f"{min(s.from_mm for s in cut.slots):.0f} to {max(s.to_mm for s in cut.slots):.0f} mm out from the axis, "
+            f"{cut.top_mm:g} mm deep, at u {where} deg) with black epoxy before you paint the base: flush the resin "
+            f"out of them with isopropyl alcohol from a syringe and let them dry; then, the lens standing on its "
+            f"top, fill each from its far end with a syringe and a blunt needle, slowly, so that no bubble stays on "
+            f"its walls (a clear casting epoxy tinted with a few per cent of black pigment, which wets the resin). "
+            f"The black must touch the walls: light reflected inside the lens meets them at about 45°, and behind "
+            f"an air gap it would be reflected back whole. verify traced the slots filled so.")
+
+
 def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: dict,
            paint_json: dict | None = None) -> list[str]:
-    """Plain-text paragraphs: orientation, the LED, finishing, the black paint, the
-    polishing allowance."""
+    """Plain-text paragraphs: orientation, the LED, finishing, the black paint and
+    slots, the polishing allowance."""
     allowance = study["allowance_mm"] * 1000
     bound = "at least " if study["allowance_at_least"] else ""
     error = study["profile_error_mm"] * 1000
@@ -100,7 +118,7 @@ def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: d
          f"a stalk, {_MOUNTED[led.shape]} {light_mm[2]:g} mm above the base on the axis; the design assumes "
          f"{_SHINES[led.shape]}, with the size of its profile ({led.name})." + _fins(led)),
         _FINISH[fab.process],
-        *[p for p in (paint(paint_json or {}),) if p],
+        *[p for p in (paint(paint_json or {}), slots(paint_json or {})) if p],
         (f"Polishing allowance: uneven removal of up to {bound}{allowance:.0f} um (peak, over patches of "
          f"~{study['correlation_mm']:g} mm) keeps every wall's Pearson r within {study['r_drop']} of the design. "
          f"This profile's surface error, {error:.0f} um, costs r {study['profile_error_drop']:.3f}"

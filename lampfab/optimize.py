@@ -150,7 +150,7 @@ class Optimizer:
 
     def __init__(self, cyl: surface.Cylinder, inner_vertices: np.ndarray, inner_faces: np.ndarray,
                  source: Source, ior: float, walls: list[Wall], targets: list[np.ndarray],
-                 opt: Optimize, limits: Limits):
+                 opt: Optimize, limits: Limits, slots=None):
         if opt.backtrack and opt.schedule != "joint":
             # One view per step: consecutive losses are of different walls, and every
             # step would look like a rise (the profile loader refuses this too).
@@ -163,6 +163,9 @@ class Optimizer:
         # The light whose pictures the loss compares with the targets: the LED, or its
         # beam from the ideal point.
         self.source = source
+        # The black-filled slots (``slots.Slots``) that will end the light entering them
+        # in the glass: the splat stops its photons there (the source's method ignores them).
+        self.slots = slots
         self._scene_grid = None
 
     def gradient(self, heights: np.ndarray, views: list[int], seed: int, level: int = -1) -> tuple[float, np.ndarray]:

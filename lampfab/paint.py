@@ -42,7 +42,7 @@ def free_span_deg(sectors_deg: dict[str, tuple[float, float]]) -> tuple[float, f
 
 
 def painted_faces(vertices: np.ndarray, faces: np.ndarray, choice: str, height_mm: float,
-                  back_deg: tuple[float, float] | None = None) -> np.ndarray:
+                  back_deg: tuple[float, float] | None = None, slots=None) -> np.ndarray:
     """Which facets of a lens solid are painted: (m,) bool.
 
     vertices (n, 3) float64 mm, z up, the base on z = 0; faces (m, 3) int wound outward;
@@ -50,16 +50,17 @@ def painted_faces(vertices: np.ndarray, faces: np.ndarray, choice: str, height_m
     (deg, u = atan2(y, x)) that lights no wall, painted on the outer surface with
     "top_base_and_back".  The top and the base are the flat facets at those heights (the
     bore's and the hollow's walls and roof are inside, not painted); the outer surface's
-    facets are those facing away from the axis."""
+    facets are those facing away from the axis.  The walls of ``slots`` (``slots.Slots``,
+    or None) are black whatever the choice: the maker fills them with black epoxy."""
     if choice not in CHOICES:
         raise ValueError(f"black paint {choice!r}: one of {', '.join(CHOICES)}")
-    painted = np.zeros(len(faces), bool)
+    tri = vertices[faces]
+    centre = tri.mean(axis=1)
+    painted = np.zeros(len(faces), bool) if slots is None else slots.on_walls(centre)
     if choice == "none":
         return painted
-    tri = vertices[faces]
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
-    centre = tri.mean(axis=1)
     flat = np.abs(normal[:, 2]) > np.cos(np.radians(tolerances.FLAT_FACE_DEG))
     at_end = (np.abs(centre[:, 2]) < tolerances.FLAT_FACE_HEIGHT_MM) | (
         np.abs(centre[:, 2] - height_mm) < tolerances.FLAT_FACE_HEIGHT_MM)
@@ -75,7 +76,9 @@ def painted_faces(vertices: np.ndarray, faces: np.ndarray, choice: str, height_m
 
 def painted_from_json(vertices: np.ndarray, faces: np.ndarray, lens: dict) -> np.ndarray:
     """``painted_faces`` of a lens solid (vertices (n, 3) float64 mm, the base on z = 0,
-    faces (m, 3) int) as design.json's ``lens`` says (``black_paint``, ``painted_u_deg``;
-    a design without them is unpainted): (m,) bool."""
+    faces (m, 3) int) as design.json's ``lens`` says (``black_paint``, ``painted_u_deg``,
+    ``slots``; a design without them is unpainted and has none): (m,) bool."""
+    from .slots import Slots
+
     return painted_faces(vertices, faces, lens.get("black_paint", "none"), float(vertices[:, 2].max()),
-                         lens.get("painted_u_deg"))
+                         lens.get("painted_u_deg"), Slots.from_json(lens.get("slots")))

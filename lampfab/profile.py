@@ -57,6 +57,11 @@ class Lens:
                              doc="matt black paint on faces that light no wall, where it swallows light reflected "
                                  "inside the lens: none, the flat top and base, or those and the outer surface "
                                  "where no wall's sector lies (none with a floor image)")
+    slot_width_mm: float = _spec(0.0, 0.0, 3.0,
+                                 doc="a print's blind slots, this wide, at the edges between the walls' sectors, "
+                                     "open through the base, that the maker fills with black epoxy: they stop the "
+                                     "light reflected inside the glass from crossing to another wall; 0: none "
+                                     "(at least 0.5 when set, for the resin to drain and the epoxy to flow)")
 
 
 @dataclass(frozen=True)
@@ -364,6 +369,15 @@ def check_led_for(design: Design, led: Led) -> None:
                            f"(LED=post3535, one faces the floor's part of the lens) or leave out the floor")
 
 
+def check_fab_for(design: Design, fab: Fabrication) -> None:
+    """Refuse slots on a lens that is not printed: no tool cuts a slot a millimetre wide
+    and several centimetres deep."""
+    if design.lens.slot_width_mm and fab.process != "sla":
+        raise LampfabError(f"{design.path}: [lens] slot_width_mm {design.lens.slot_width_mm:g}: slots are for a "
+                           f"printed lens, and {fab.path} is made by {fab.process} (no tool cuts them); set it to 0 "
+                           f"or print the lens (FAB=sla_resin)")
+
+
 def with_bore_for(fab: Fabrication, led: Led) -> Fabrication:
     """``fab`` with its bore widened, where needed, so that ``led``'s board passes through."""
     return dataclasses.replace(fab, mount_radius_mm=max(fab.mount_radius_mm, led.board_diameter_mm / 2))
@@ -377,6 +391,9 @@ def _check_design(d: Design, path: Path) -> None:
                            f"(0 to height_mm {lens.height_mm})")
     if lens.max_offset_mm >= lens.outer_radius_mm:
         raise LampfabError(f"{path}: [lens] max_offset_mm must be below outer_radius_mm")
+    if 0 < lens.slot_width_mm < 0.5:
+        raise LampfabError(f"{path}: [lens] slot_width_mm {lens.slot_width_mm:g}: allowed 0 (no slots) or 0.5 to 3 "
+                           f"(narrower, the resin does not drain nor the epoxy flow)")
     if room.wall_distance_mm <= 2 * lens.outer_radius_mm:
         raise LampfabError(f"{path}: [room] wall_distance_mm must exceed the lens diameter (walls behind or inside the lamp)")
     if not room.walls:

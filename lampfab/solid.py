@@ -268,8 +268,9 @@ def _cavity(inner_vertices, inner_faces, bore: Bore):
 
 def build_solid(cyl: surface.Cylinder, heights: np.ndarray, tessellation: int,
                 inner_vertices: np.ndarray, inner_faces: np.ndarray, mount_radius_mm: float,
-                bore_sections: int = 128) -> Solid:
-    """The lens solid: ``closed_outer_mesh`` minus (inner layer ∪ bore), verified.
+                bore_sections: int = 128, slots=None) -> Solid:
+    """The lens solid: ``closed_outer_mesh`` minus (inner layer ∪ bore) and ``slots``
+    (``slots.Slots``, or None), verified.
 
     cyl: the plain cylinder (mm); heights: (nu, nv) float mm radial offsets at the
     nodes; tessellation: vertices per heightmap cell edge; inner_vertices (n, 3) float
@@ -278,7 +279,7 @@ def build_solid(cyl: surface.Cylinder, heights: np.ndarray, tessellation: int,
     bore polygon's sides.
 
     Raises LampfabError if the bore does not fit the inner layer's floor or the
-    cavity is not inside the outer surface, GeometryError if manifold3d reports a bad
+    cavity or a slot is not inside the outer surface, GeometryError if manifold3d reports a bad
     status or the result fails a check.
     """
     import manifold3d  # noqa: F401 - fail early with ImportError if missing
@@ -296,15 +297,20 @@ def build_solid(cyl: surface.Cylinder, heights: np.ndarray, tessellation: int,
         raise GeometryError(f"outer surface has volume {v_outer:.6g} mm^3; expected > 0")
     cavity, inner = _cavity(inner_vertices, inner_faces, bore)
     solid = _check(outer - cavity, "outer minus cavity")
+    slot_glass = 0.0
+    if slots is not None:
+        solid = _check(solid - _check(slots.manifold(), "slots"), "lens minus slots")
+        slot_glass = slots.glass_mm3
 
-    # The cavity inside the outer surface: all of it but the bore below z = 0.
+    # The cavity inside the outer surface: all of it but the bore below z = 0.  Each slot
+    # lies in the glass above the base, so it takes its whole box there.
     v_cavity_in = cavity.volume() - bore.polygon_area_mm2 * (0.0 - bore.z_bottom_mm)
-    expected = v_outer - v_cavity_in
+    expected = v_outer - v_cavity_in - slot_glass
     volume = solid.volume()
     if not volume > 0 or abs(volume - expected) > tolerances.MANIFOLD_VOLUME_REL * v_outer:
         raise LampfabError(
-            f"lens solid has volume {volume:.3f} mm^3 but outer {v_outer:.3f} - cavity {v_cavity_in:.3f} = "
-            f"{expected:.3f}: the inner layer or the bore crosses the outer surface")
+            f"lens solid has volume {volume:.3f} mm^3 but outer {v_outer:.3f} - cavity {v_cavity_in:.3f} - slots "
+            f"{slot_glass:.3f} = {expected:.3f}: the inner layer, the bore or a slot crosses the outer surface")
     bodies = len(solid.decompose())
     if bodies != 1:
         raise GeometryError(f"lens solid has {bodies} bodies; expected one")

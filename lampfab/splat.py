@@ -74,7 +74,8 @@ class SplatOptimizer(Optimizer):
 
     def _photons(self, seed: int, level: int) -> None:
         """Photons in the glass, after the inner layer, with their flux
-        (``trace.into_glass``: refracted, and some reflected across the cavity).
+        (``trace.into_glass``: refracted, and some reflected across the cavity); those
+        headed into a black-filled slot carry none.
 
         They leave the ``source``: the ideal point, or the LED's emitting surface, so that
         the loss sees the blurred pictures the walls will really get.  Designing for the
@@ -100,6 +101,8 @@ class SplatOptimizer(Optimizer):
         self.n_photons = dr.width(d)
         self.o_glass, self.d_glass, self.w_glass = into_glass(mi, self.inner.scene, o, d, self.ior,
                                                               CAVITY_REFLECTIONS_EVERY, stopper(mi, self.source))
+        if self.slots is not None:
+            self.w_glass = dr.select(self.slots.stops(mi, self.o_glass, self.d_glass), 0.0, self.w_glass)
         dr.eval(self.o_glass, self.d_glass, self.w_glass)
         self._photon_key = (seed, count)
 

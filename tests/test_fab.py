@@ -91,3 +91,17 @@ def test_guidance_says_which_faces_to_paint_black():
     ends = " ".join(guidance.advice(*args, {"black_paint": "top_base_and_back", "painted_u_deg": None}))
     assert "paint the flat top and the base matt black" in ends and "outer surface from u" not in ends
     assert "matt black paint" not in " ".join(guidance.advice(*args, {"black_paint": "none"}))
+
+
+def test_guidance_says_how_to_fill_the_slots():
+    from lampfab.slots import Slot, Slots
+
+    study = {"allowance_mm": 0.05, "allowance_at_least": False, "profile_error_mm": 0.02,
+             "profile_error_drop": 0.004, "r_drop": 0.02, "correlation_mm": 5.0}
+    args = (load_fabrication("sla_resin"), load_led("post3535"), ["front", "left", "right"], np.zeros(3), study)
+    cut = Slots(1.0, 85.0, tuple(Slot(a, 17.0, 34.0 + a / 100) for a in (45.0, 135.0, 225.0, 315.0)))
+    text = " ".join(guidance.advice(*args, {"black_paint": "top_and_base", "slots": cut.to_json()}))
+    assert ("Fill the 4 slots that open in the base (1 mm wide, 17 to 37 mm out from the axis, 85 mm deep, "
+            "at u 45, 135, 225, 315 deg) with black epoxy") in text
+    assert "air gap" in text
+    assert "slots" not in " ".join(guidance.advice(*args, {"black_paint": "top_and_base"}))

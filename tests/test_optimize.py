@@ -20,10 +20,11 @@ def tiny_setup(tiny_design, inner_layer):
     return cyl, walls, targets
 
 
-def _optimizer(cls, tiny_design, inner_layer, tiny_setup, **changes):
+def _optimizer(cls, tiny_design, inner_layer, tiny_setup, slots=None, **changes):
     cyl, walls, targets = tiny_setup
     opt = dataclasses.replace(tiny_design.optimize, **changes)
-    return cls(cyl, *inner_layer, Source(room.light_position(tiny_design)), 1.49, walls, targets, opt, Limits(20.0, 45.0))
+    return cls(cyl, *inner_layer, Source(room.light_position(tiny_design)), 1.49, walls, targets, opt, Limits(20.0, 45.0),
+               slots)
 
 
 def test_splat_gradient_matches_finite_differences(mi, tiny_design, inner_layer, tiny_setup):
@@ -76,6 +77,23 @@ def test_finer_levels_trace_fine_level_photons_times_as_many(mi, tiny_design, in
     assert opt.n_photons == counts[-1]
     single = dataclasses.replace(opt.opt, levels=1)
     assert splat.photons_per_step(single, -1) == splat.photons_per_step(single, 0) == 100_000
+
+
+def test_splat_photons_headed_into_a_slot_carry_no_light(mi, tiny_design, inner_layer, tiny_setup):
+    """The refinement sees the shadow of the black-filled slots: the photons whose way
+    through the glass enters one end there, and only those."""
+    from lampfab.slots import Slot, Slots
+
+    cut = Slots(3.0, tiny_design.lens.height_mm - 5.0, tuple(Slot(a, 18.0, 30.0) for a in (45.0, 135.0, 225.0, 315.0)))
+    plain = _optimizer(splat.SplatOptimizer, tiny_design, inner_layer, tiny_setup, splat_photons=100_000)
+    slotted = _optimizer(splat.SplatOptimizer, tiny_design, inner_layer, tiny_setup, slots=cut, splat_photons=100_000)
+    h = np.zeros((tiny_design.optimize.grid_u, tiny_design.optimize.grid_v))
+    light = [sum(o.render(h, k, seed=2).sum() for k in range(3)) for o in (plain, slotted)]
+    stopped = cut.stops(mi, plain.o_glass, plain.d_glass).numpy()
+    weights = plain.w_glass.numpy()
+    assert 0.01 < stopped.mean() < 0.2 and (weights[stopped] > 0).all()
+    assert np.array_equal(slotted.w_glass.numpy(), np.where(stopped, 0.0, weights))
+    assert light[1] < light[0] * (1 - 0.3 * weights[stopped].sum() / weights.sum())
 
 
 def test_splat_image_is_the_photon_count_per_pixel(tiny_design, inner_layer, tiny_setup):

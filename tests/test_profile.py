@@ -164,3 +164,16 @@ def test_designing_for_the_led_needs_the_splat_refinement(tmp_path):
     p.write_text("[optimize]\nmethod = 'ptracer'\nloss = 'si_mse'\ndesign_light = 'led'\n")
     with pytest.raises(LampfabError, match="design_light.*splat"):
         profile.load_design(str(p))
+
+
+def test_slots_are_half_a_millimetre_wide_at_least_and_only_printed(tmp_path):
+    p = tmp_path / "p.toml"
+    p.write_text("[lens]\nslot_width_mm = 0.3\n")
+    with pytest.raises(LampfabError, match=r"p\.toml: \[lens\] slot_width_mm 0\.3: allowed 0 \(no slots\) or 0\.5 to 3"):
+        profile.load_design(str(p))
+    p.write_text("[lens]\nslot_width_mm = 1.0\n")
+    design = profile.load_design(str(p))
+    profile.check_fab_for(design, profile.load_fabrication("sla_resin"))
+    with pytest.raises(LampfabError, match=r"p\.toml: \[lens\] slot_width_mm 1: .*acrylic_cnc4.*cnc4.*FAB=sla_resin"):
+        profile.check_fab_for(design, profile.load_fabrication("acrylic_cnc4"))
+    profile.check_fab_for(profile.load_design("default"), profile.load_fabrication("acrylic_cnc4"))

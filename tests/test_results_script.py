@@ -59,16 +59,33 @@ def test_the_tables_are_rewritten_between_their_markers_and_nowhere_else(results
     assert page.read_text() == text
 
 
+def _table_rows(results, tmp_path, table: str, start: str) -> list[str]:
+    """The rows starting with ``start`` of ``table`` written on an empty page."""
+    page = tmp_path / "page.md"
+    page.write_text(f"<!-- results:{table} -->\n<!-- /results:{table} -->\n")
+    results.write_tables([page])
+    return [line for line in page.read_text().splitlines() if line.startswith(start)]
+
+
 def test_the_led_design_table_sets_each_point_light_design_beside_its_led_design(results, tmp_path):
     _fake_build(tmp_path / "builds" / "apple", 0.9912)
     _fake_build(tmp_path / "builds" / "apple_point_design", 0.9701)
-    page = tmp_path / "page.md"
-    page.write_text("<!-- results:led_design -->\n<!-- /results:led_design -->\n")
-    results.write_tables([page])
-    rows = [line for line in page.read_text().splitlines() if line.startswith("| apple")]
+    rows = _table_rows(results, tmp_path, "led_design", "| apple")
     # Only the pairs whose both builds exist: text and camera have none here.
     assert rows == ["| apple | 0.970 / 0.61-0.64 | 0.991 / 0.61-0.64 | — | — | 0.960 / 0.45 | 0.960 / 0.45 "
                     "|"]
+
+
+def test_the_slots_table_sets_each_slotted_lens_beside_the_default_one(results, tmp_path):
+    _fake_build(tmp_path / "builds" / "star", 0.9851)
+    _fake_build(tmp_path / "builds" / "star_slotted", 0.9862)
+    walls = tmp_path / "builds" / "star_slotted" / "verify.json"
+    slotted = json.loads(walls.read_text())
+    for wall, ssim in zip(slotted["figures"]["walls"].values(), (0.90, 0.899)):
+        wall.update(led_ssim=ssim, ghost_share=0.005, led_share=0.19)
+    walls.write_text(json.dumps(slotted))
+    assert _table_rows(results, tmp_path, "slots", "| star") == ["| star | 0.610 / 0.640 | 0.900 / 0.899 | 0.945 / 0.945 | 0.985 → 0.986 | 7.9 → 0.5 % | "
+                    "37% → 38% | — → — | 4.5 min |"]
 
 
 def test_a_case_without_a_build_here_keeps_the_row_the_page_has(results, tmp_path):

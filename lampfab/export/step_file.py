@@ -71,7 +71,7 @@ def _quiet():
 
 def write_step(path, cyl: surface.Cylinder, heights: np.ndarray, inner_vertices: np.ndarray,
                inner_faces: np.ndarray, mount_radius_mm: float, samples_u: int, samples_v: int,
-               expected_volume_mm3: float | None = None) -> dict:
+               expected_volume_mm3: float | None = None, slots=None) -> dict:
     """Write the lens as a STEP (AP214, mm) solid to ``path`` atomically; return figures.
 
     cyl: plain cylinder (mm); heights: (nu, nv) float mm node offsets; inner_vertices
@@ -80,7 +80,8 @@ def write_step(path, cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
     samples_u x samples_v: the most interpolation samples the B-spline may have (its pole
     counts); it gets the fewest that keep it within ``tolerances.BSPLINE_DEVIATION_MM``.
     If ``expected_volume_mm3`` (e.g. the STL solid's) is given, the STEP solid's volume
-    must match it within ``tolerances.VOLUME_REL``.
+    must match it within ``tolerances.VOLUME_REL``.  ``slots`` (``slots.Slots``, or None)
+    are pockets in its base.
 
     Returns dict(valid, closed, n_solids, volume_mm3, faces, poles_u, poles_v,
     deviation_mm (radial, between samples), deviation {...}, file_bytes, fit_s (the fit
@@ -88,7 +89,7 @@ def write_step(path, cyl: surface.Cylinder, heights: np.ndarray, inner_vertices:
     non-positive or unexpected volume.
     """
     solid, info = build_step_solid(cyl, inner_vertices, inner_faces, mount_radius_mm,
-                                   fit_samples(cyl, heights, samples_u, samples_v))
+                                   fit_samples(cyl, heights, samples_u, samples_v), slots)
     info.update(check_and_write(path, solid, "the lens solid", expected_volume_mm3))
     info["deviation_mm"] = info["deviation"]["radial_mm"]
     return info

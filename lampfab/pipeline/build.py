@@ -63,8 +63,10 @@ class Build:
     def open(out, design_name: str, fab_name: str, led_name: str = profile.DEFAULT_LED) -> "Build":
         led = profile.load_led(led_name)
         design = profile.load_design(design_name)
+        fab = profile.load_fabrication(fab_name)
         profile.check_led_for(design, led)
-        return Build(Path(out), design, profile.with_bore_for(profile.load_fabrication(fab_name), led), led)
+        profile.check_fab_for(design, fab)
+        return Build(Path(out), design, profile.with_bore_for(fab, led), led)
 
     # -- the lens and its room, as the stages use them ------------------------------------
     @functools.cached_property
@@ -142,10 +144,10 @@ class Build:
         return transport.design(self.cylinder, self.walls, self.targets(opt.sensor_px), *inner, self.source,
                                 self.fab.ior, self.limits, opt, **progress)
 
-    def optimizer(self, opt, inner, targets, limits=None):
+    def optimizer(self, opt, inner, targets, limits=None, slots=None):
         """The refinement ``opt.method`` names, for this build's lens, room, light and
         ``limits`` (default: the profiles' ``limits``), against ``targets`` (one image per
-        wall)."""
+        wall), the light ending in ``slots`` (``slots.Slots``)."""
         from .. import optimize
         from ..splat import SplatOptimizer
 
@@ -155,7 +157,8 @@ class Build:
                                f"point light, which shines every way; LED={self.led.name} shines from flat faces: "
                                f"use method \"splat\"")
         source = self.source if opt.design_light == "led" else self.source.point()
-        return method(self.cylinder, *inner, source, self.fab.ior, self.walls, targets, opt, limits or self.limits)
+        return method(self.cylinder, *inner, source, self.fab.ior, self.walls, targets, opt, limits or self.limits,
+                      slots)
 
     # -- where each artifact lives ----------------------------------------------------------
     def report_file(self, stage: str) -> Path:

@@ -42,6 +42,10 @@ class LensKind(ABC):
         """init: ((nu, nv) mm heights, figures for init.json, "method" first, with the
         ``slope_limit_deg`` it designed under)."""
 
+    def slots(self, build, heights: np.ndarray):
+        """The black-filled slots of a lens of ``heights`` (``slots.Slots``), or None."""
+        return None
+
     @abstractmethod
     def solid(self, build, heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
         """The closed solid of ``heights``: ((n, 3) mm vertices, (m, 3) int faces,
@@ -96,8 +100,9 @@ class Lamp(LensKind):
         build.inner()
 
     def solid_maker(self, build):
-        """``make(heights)``: the lens solid (``solid.Solid``, mm) the solid stage builds
-        from (nu, nv) heights in mm, the inner layer loaded once for every call.
+        """``make(heights, slots=None)``: the lens solid (``solid.Solid``, mm) the solid
+        stage builds from (nu, nv) heights in mm, the inner layer loaded once for every
+        call; ``slots`` (``slots.Slots``) cut from it.
 
         The plan and the tolerance study trace it too, not the bore-less optical mesh: the
         bore through the base removes the glass under the cavity's floor, whose
@@ -106,9 +111,9 @@ class Lamp(LensKind):
 
         iv, if_ = build.inner()
 
-        def make(heights: np.ndarray):
+        def make(heights: np.ndarray, slots=None):
             return solid.build_solid(build.cylinder, heights, build.design.optimize.tessellation, iv, if_,
-                                     build.fab.mount_radius_mm)
+                                     build.fab.mount_radius_mm, slots=slots)
         return make
 
     def plain_optics(self, build) -> tuple:
@@ -143,10 +148,35 @@ class Lamp(LensKind):
         return heights, {"method": "transport", **figs}
 
     def solid(self, build, heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
-        """Outer shell minus inner layer and LED bore: one watertight solid in mm."""
-        s = self.solid_maker(build)(heights)
+        """Outer shell minus inner layer, LED bore and the profile's slots: one watertight
+        solid in mm."""
+        slots = self.slots(build, heights)
+        s = self.solid_maker(build)(heights, slots)
         return s.vertices, s.faces, {"volume_mm3": s.volume_mm3, "triangles": int(len(s.faces)),
-                                     "genus": s.genus, "bore": dataclasses.asdict(s.bore)}
+                                     "genus": s.genus, "bore": dataclasses.asdict(s.bore),
+                                     "slots": None if slots is None else slots.to_json()}
+
+    def slots(self, build, heights: np.ndarray):
+        """The profile's slots (``slots.plan``) at init's sector edges, as far out as the
+        outer surface of ``heights`` allows, or None."""
+        from .. import slots, surface
+
+        width = build.design.lens.slot_width_mm
+        if not width:
+            return None
+        outer = surface.closed_outer_vertices(build.cylinder, heights, build.design.optimize.tessellation)[:-2]
+        inner_vertices = build.inner()[0]
+        cavity_reach = max(float(np.hypot(inner_vertices[:, 0], inner_vertices[:, 1]).max()),
+                           build.fab.mount_radius_mm)
+        return slots.plan(width, _sectors(build), cavity_reach, outer, build.design.lens.height_mm,
+                          build.fab.min_wall_mm)
+
+    @staticmethod
+    def made_slots(build):
+        """The slots the solid stage cut (``slots.Slots``), or None."""
+        from ..slots import Slots
+
+        return Slots.from_json((build.stage_report("solid") or {}).get("figures", {}).get("slots"))
 
     def check(self, build, vertices: np.ndarray, faces: np.ndarray) -> list:
         from .. import checks
@@ -164,7 +194,7 @@ class Lamp(LensKind):
         export = build.design.export
         return step_file.write_step(build.lens_step, build.cylinder, build.heights(), iv, if_,
                                     build.fab.mount_radius_mm, export.step_samples_u, export.step_samples_v,
-                                    expected_volume_mm3=stl_volume_mm3)
+                                    expected_volume_mm3=stl_volume_mm3, slots=self.made_slots(build))
 
     def light_json(self, build) -> dict:
         """The LED: its centre, its emitting shape and size, the part."""
@@ -175,16 +205,16 @@ class Lamp(LensKind):
                 "part": led.part, "flux_lm": led.flux_lm}
 
     def paint_json(self, build) -> dict:
-        """The profile's black paint, and the arc of u (deg) of the outer surface that
-        lights no wall where it paints there: init's sectors (each wall's own, as the
-        design shifted them), or the walls' centred sectors for a first design without."""
+        """The profile's black paint, the arc of u (deg) of the outer surface that lights
+        no wall where it paints there (``_sectors``), and the black-filled slots the solid
+        stage cut."""
         from .. import paint
 
         choice = build.design.lens.black_paint
-        init = build.stage_report("init") or {}
-        sectors = init.get("figures", {}).get("sectors_deg") or {w.name: w.sector_deg() for w in build.walls}
-        back = paint.free_span_deg(sectors) if choice == "top_base_and_back" else None
-        return {"black_paint": choice, "painted_u_deg": None if back is None else [round(a, 2) for a in back]}
+        back = paint.free_span_deg(_sectors(build)) if choice == "top_base_and_back" else None
+        slots = self.made_slots(build)
+        return {"black_paint": choice, "painted_u_deg": None if back is None else [round(a, 2) for a in back],
+                "slots": None if slots is None else slots.to_json()}
 
     def finishing(self, build) -> dict:
         """The tolerance study and the post-processing guidance (``guidance``)."""
@@ -236,3 +266,10 @@ class Lamp(LensKind):
                 f"goes into the bore in the base (radius {build.fab.mount_radius_mm} mm); place the lamp with its +y "
                 f"side facing the front wall, {build.design.room.wall_distance_mm:.0f} mm from the front, left and "
                 f"right walls.</p>")
+
+
+def _sectors(build) -> dict[str, tuple[float, float]]:
+    """Each wall's sector of u (deg): init's (each wall's own, as the design shifted
+    them), or the walls' centred sectors for a first design without."""
+    init = build.stage_report("init") or {}
+    return init.get("figures", {}).get("sectors_deg") or {w.name: w.sector_deg() for w in build.walls}

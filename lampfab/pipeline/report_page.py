@@ -217,6 +217,10 @@ def _groups(build: Build, figures: dict, plan: dict) -> dict:
     if solid:
         geometry += [("Volume of glass", f"{solid['figures']['volume_mm3'] / 1000:.0f} cm³"),
                      ("Triangles", f"{solid['figures']['triangles']:,}")]
+        slots = solid["figures"].get("slots")
+        if slots:
+            geometry.append(("Slots in the base, to fill with black epoxy",
+                             f"{len(slots['slots'])}, {slots['width_mm']:g} mm wide, {slots['top_mm']:g} mm deep"))
     if export:
         e = export["figures"]
         geometry += [("lens.stl", f"{e['stl_bytes'] / 1e6:.1f} MB"), ("lens.step", f"{e['step_bytes'] / 1e6:.1f} MB"),

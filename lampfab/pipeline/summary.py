@@ -42,7 +42,9 @@ def _key_figure(stage: str, figs: dict) -> str:
         loss = figs.get("final_loss")
         return f"{figs['steps']} steps" + (f", final loss {loss:.3g}" if loss is not None else "")
     if stage == "solid":
-        return f"{figs['volume_mm3'] / 1000:.0f} cm³, {figs['triangles']} triangles"
+        slots = figs.get("slots")
+        return (f"{figs['volume_mm3'] / 1000:.0f} cm³, {figs['triangles']} triangles"
+                + (f", {len(slots['slots'])} slots to fill black" if slots else ""))
     if stage == "fabcheck":
         from ..checks import CheckResult, failed
 

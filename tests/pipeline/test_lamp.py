@@ -12,6 +12,7 @@ from PIL import Image
 
 from lampfab import solid
 from lampfab.export import stl
+from lampfab.inner import winding_number
 from tests.helpers import ROOT, TINY_LED, cli, load_bench, make
 
 REPORTS = ["prepare", "plan", "init", "optimize", "solid", "checks", "export", "verify"]
@@ -278,6 +279,37 @@ def test_the_slots_benchmark_stops_light_reflected_inside_the_glass(lamp):
         slotted = bench.measure(loaded, 400_000, 3)
     assert sum(w["share"] for w in slotted) < sum(w["share"] for w in made)
     assert sum(w["share"] * w["ghost"] for w in slotted) < sum(w["share"] * w["ghost"] for w in made)
+
+
+@pytest.mark.slow
+@pytest.mark.e2e
+def test_a_slotted_lamp_has_its_slots_in_every_file_and_in_the_light(lamp, tmp_path, tiny_with):
+    """`slot_width_mm` through the pipeline: the refinement stops light in the slots, the
+    solid, the STL and the STEP have them, verify traces them black and the report tells
+    the maker to fill them; the same image without them reflects more light inside the
+    lens."""
+    from lampfab.export import step_file
+
+    run = make("lamp", f"BUILD={tmp_path / 'b'}", "NAME=apple", f"PROFILE={tiny_with('slots.toml', 'slot_width_mm = 1.0')}")
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    assert re.search(r"solid .* 4 slots to fill black", run.stdout)
+    out = tmp_path / "b" / "apple"
+    report = lambda name: json.loads((out / f"{name}.json").read_text())["figures"]  # noqa: E731
+    cut = report("solid")["slots"]
+    assert [s["azimuth_deg"] for s in cut["slots"]] == [45.0, 135.0, 225.0, 315.0]
+    assert report("optimize")["slots_stopping_light"]["width_mm"] == 1.0
+    design = json.loads((out / "design.json").read_text())
+    assert design["lens"]["slots"] == cut
+    v, f = stl.read_stl(out / "lens.stl")
+    for s in cut["slots"]:  # the STL is open where each slot is, and glass beside it
+        a, r = np.radians(s["azimuth_deg"]), 0.5 * (s["from_mm"] + s["to_mm"])
+        for across, inside in ((0.0, 0.0), (1.0, 1.0)):
+            p = np.array([r * np.cos(a) - across * np.sin(a), r * np.sin(a) + across * np.cos(a), 40.0])
+            assert winding_number(v, f, p) == pytest.approx(inside, abs=1e-6), (s, across)
+    assert step_file.read_step(out / "lens.step")["valid"]
+    walls, plain_walls = report("verify")["walls"], json.loads((lamp[0] / "verify.json").read_text())["figures"]["walls"]
+    assert sum(w["ghost_share"] for w in walls.values()) < sum(w["ghost_share"] for w in plain_walls.values())
+    assert "Fill the 4 slots that open in the base" in (out / "report.html").read_text()
 
 
 @pytest.mark.slow

@@ -25,7 +25,10 @@ def optimize(build: Build) -> dict:
     d, opt = build.design, build.design.optimize
     report = build.begin("optimize", {"init": build.init_file, **build.target_paths()})
     init_heights, limits = build.first_lens()
-    optimizer = build.optimizer(opt, build.inner(), build.targets(opt.sensor_px), limits)
+    # Planned on the first design; the solid stage plans them again on the refined one,
+    # whose outer surface lies a little elsewhere.
+    slots = build.kind.slots(build, init_heights)
+    optimizer = build.optimizer(opt, build.inner(), build.targets(opt.sensor_px), limits, slots)
     checkpoint = build.checkpoint_file
     for written in (checkpoint, build.heightmap_file):
         artifacts.remove_stale_temps(written)
@@ -76,6 +79,7 @@ def optimize(build: Build) -> dict:
                         ["%d", "%d", "%d", "%.6g", "%.3f"])
     frames = pictures.optimization_gif(build.previews_dir, [w.name for w in build.walls], build.gif_file)
     report.figure(steps=int(state.step), resumed=resumed, gif_frames=frames,
+                  slots_stopping_light=None if slots is None else slots.to_json(),
                   numerical_faults=[{"step": int(a), "learning_rate_scale": b} for a, b in state.faults],
                   backtracks=[{"step": int(a), "learning_rate_scale": b} for a, b in state.backtracks],
                   final_loss=float(steps[-1, 3]) if len(steps) else None,
