@@ -12,15 +12,18 @@ another wall's sector, and leaves there as a haze over that wall's picture
 from the outer surface in to some distance from the axis (its floor), its walls filled
 or painted black, would stop those chords.
 
-This script traces each build's exported STL with its LED as verify does (stratified
-photons, 64 px), once as made and once for each floor radius with the slots modelled as
-black half-planes at the sectors' edges (design.json's walls; the fins' azimuths), from
-the floor outwards (to ``--reach`` mm from the axis: a slot open to the hollow instead,
+lampfab makes blind slots of this kind as an option (``[lens] slot_width_mm``,
+``lampfab.slots``): open through the base, short of the outer surface, and known to the
+refinement. This script measures the idealised ones on lenses made without them: it
+traces each build's exported STL with its LED as verify does (stratified photons,
+64 px), once as made and once for each floor radius with the slots modelled as black
+half-planes at the sectors' edges (design.json's walls; the fins' azimuths), from the
+floor outwards (to ``--reach`` mm from the axis: a slot open to the hollow instead,
 which leaves the outer surface whole) and 5 mm short of the base and the top, that end
-the light inside the lens (never the light on its way to a wall).  They take no glass away, so the light a
-real slot's width (about a millimetre) would take from the outer surface beside each
-edge is not counted.  Per wall: its share of the emitted light, the light reflected
-inside the lens, and the LED render's r and SSIM against the target.
+the light inside the lens (never the light on its way to a wall). They take no glass
+away, so the light a real slot's width (about a millimetre) would take from the outer
+surface beside each edge is not counted. Per wall: its share of the emitted light, the
+light reflected inside the lens, and the LED render's r and SSIM against the target.
 """
 
 from __future__ import annotations
