@@ -94,7 +94,9 @@ CASES = (
                                  ("horse", ("TARGET=examples/horse.png",), ""),
                                  ("text", ("TEXT=Sweet dreams little one",), ""),
                                  ("camera", (f"TARGET={INPUTS / 'camera.png'}",), "camera"),
-                                 ("portrait", ("TARGET=examples/portrait.png",), ""))),
+                                 ("portrait", ("TARGET=examples/portrait.png",), ""),
+                                 ("words", ("TEXT=Welcome home dear friend",), ""),
+                                 ("panorama", ("PANORAMA=examples/panorama.png",), ""))),
 )
 
 def _edited_profile(case: Case) -> Path:
