@@ -184,7 +184,7 @@ def _row(case: Case, table: str) -> str | None:
     if table == "led_design":
         return _before_after_row(case, walls)
     if table == "slots":
-        return _slots_row(case, walls)
+        return _slots_row(case, walls, r["make_seconds"])
     if table == "reflections":
         if not all("led_ssim_ceiling" in w for w in walls):
             return None
@@ -240,9 +240,9 @@ def _before_after_row(case: Case, before: list[dict]) -> str | None:
             f"{_read(after)} | {_figures(before, '')} | {_figures(after, '')} |")
 
 
-def _slots_row(case: Case, after: list[dict]) -> str | None:
+def _slots_row(case: Case, after: list[dict], make_seconds: float | None) -> str | None:
     """A row of the slots table: the default case ``case`` is a variant of, then ``case``
-    (the same image with black-filled slots), each with the LED."""
+    (the same image with black-filled slots, made in ``make_seconds``), each with the LED."""
     before = _walls_of(case.variant_of)
     if before is None:
         return None
@@ -250,13 +250,12 @@ def _slots_row(case: Case, after: list[dict]) -> str | None:
     def each(walls, key, digits=3):
         return " / ".join(f"{w[key]:.{digits}f}" for w in walls)
 
-    minutes = _reports(case.name)["make_seconds"]
     return (f"| {case.variant_of} | {each(before, 'led_ssim')} | {each(after, 'led_ssim')} | "
             f"{each(after, 'led_reference_ssim')} | {_span([w['led_pearson'] for w in before])} → "
             f"{_span([w['led_pearson'] for w in after])} | {_span([100 * w['ghost_share'] for w in before], 1)} → "
             f"{_span([100 * w['ghost_share'] for w in after], 1)} % | {sum(w['led_share'] for w in before):.0%} → "
             f"{sum(w['led_share'] for w in after):.0%} | {_read(before)} → {_read(after)} | "
-            f"{(minutes or 0) / 60:.1f} min |")
+            f"{(make_seconds or 0) / 60:.1f} min |")
 
 
 _SHORT = ("| {first} | what it is | with the LED: r / SSIM | ideal point light: r / SSIM | LED blur (across x up) "

@@ -29,11 +29,12 @@ _MAKE_VARIABLES = ("TARGET", "TEXT", "PANORAMA", "NAME", "PROFILE", "FAB", "ALLO
                    "TARGET_FRONT", "TARGET_LEFT", "TARGET_RIGHT", "TARGET_FLOOR", "LED")
 
 
-def load_bench(name: str):
-    """A script of bench/ imported as a module (bench/ is no package)."""
-    spec = importlib.util.spec_from_file_location(name, ROOT / "bench" / f"{name}.py")
+def load_script(path: str):
+    """A script of the repository (``path`` relative to it: bench/ and examples/ are no
+    packages) imported as a module."""
+    spec = importlib.util.spec_from_file_location(Path(path).stem, ROOT / path)
     module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
+    sys.modules[spec.name] = module  # its dataclasses look their module up
     spec.loader.exec_module(module)
     return module
 

@@ -5,7 +5,7 @@ import dataclasses
 
 import pytest
 
-from tests.helpers import ROOT, load_bench
+from tests.helpers import ROOT, load_script
 
 
 def test_the_source_method_runs_with_the_default_posts_leds(tmp_path, tiny_profile):
@@ -14,7 +14,7 @@ def test_the_source_method_runs_with_the_default_posts_leds(tmp_path, tiny_profi
     from lampfab import optimize, pipeline
     from lampfab.errors import LampfabError
 
-    bench = load_bench("bench_methods")
+    bench = load_script("bench/bench_methods.py")
     build = pipeline.Build.open(tmp_path / "b", str(tiny_profile), "sla_resin", "post3535")
     pipeline.prepare(build, str(ROOT / "examples" / "apple.png"), {})
     inner = build.inner()
@@ -34,7 +34,7 @@ def test_the_slope_projection_benchmark_replays_under_both_solvers(cyl):
 
     from lampfab import limits
 
-    bench = load_bench("slope_projection")
+    bench = load_script("bench/slope_projection.py")
     heights = np.zeros((64, 17))
     heights[10:14, 6:10] = 8.0                          # far steeper than 45°
     calls = [((cyl, heights, 45.0), {}), ((cyl, heights * 0.5, 45.0), {"max_overhang_deg": 45.0})]
@@ -53,7 +53,7 @@ def test_the_ssim_regions_split_a_wall_and_find_a_veil_on_its_black():
 
     from lampfab import metrics
 
-    bench = load_bench("ssim_regions")
+    bench = load_script("bench/ssim_regions.py")
     y, x = np.mgrid[0:48, 0:64]
     target = np.clip((16 - np.hypot(x - 32, y - 24)) / 4, 0, 1)  # a flat bright disc, a soft rim, black around
     masks = bench.regions(target)
@@ -75,7 +75,7 @@ def test_the_facet_walk_benchmark_finds_the_facets_mitsuba_finds(tmp_path, tiny_
 
     from lampfab import pipeline
 
-    bench = load_bench("facet_walk")
+    bench = load_script("bench/facet_walk.py")
     build = pipeline.Build.open(tmp_path / "b", str(tiny_profile), "sla_resin", "post3535")
     apple = str(ROOT / "examples" / "apple.png")
     pipeline.snapshot(build, {"all": apple})

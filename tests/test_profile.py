@@ -149,30 +149,29 @@ def test_a_preferred_slope_steeper_than_the_limit_is_refused_and_an_unset_one_is
     assert (limits.max_slope_deg, limits.steepest_slope_deg) == (68.0, None)
 
 
-def test_more_photons_on_the_fine_level_needs_the_splat_refinement(tmp_path):
+def _design(tmp_path, text: str):
+    """The design profile ``text`` as written to tmp_path/p.toml and loaded."""
     p = tmp_path / "p.toml"
-    p.write_text("[optimize]\nmethod = 'ptracer'\nloss = 'si_mse'\nfine_level_photons = 2.0\n")
+    p.write_text(text)
+    return profile.load_design(str(p))
+
+
+def test_more_photons_on_the_fine_level_needs_the_splat_refinement(tmp_path):
     with pytest.raises(LampfabError, match=r"p\.toml: \[optimize\] fine_level_photons needs method \"splat\""):
-        profile.load_design(str(p))
-    p.write_text("[optimize]\nfine_level_photons = 20.0\n")
+        _design(tmp_path, "[optimize]\nmethod = 'ptracer'\nloss = 'si_mse'\nfine_level_photons = 2.0\n")
     with pytest.raises(LampfabError, match=r"p\.toml.*fine_level_photons.*0\.1.*16"):
-        profile.load_design(str(p))
+        _design(tmp_path, "[optimize]\nfine_level_photons = 20.0\n")
 
 
 def test_designing_for_the_led_needs_the_splat_refinement(tmp_path):
-    p = tmp_path / "p.toml"
-    p.write_text("[optimize]\nmethod = 'ptracer'\nloss = 'si_mse'\ndesign_light = 'led'\n")
     with pytest.raises(LampfabError, match="design_light.*splat"):
-        profile.load_design(str(p))
+        _design(tmp_path, "[optimize]\nmethod = 'ptracer'\nloss = 'si_mse'\ndesign_light = 'led'\n")
 
 
 def test_slots_are_half_a_millimetre_wide_at_least_and_only_printed(tmp_path):
-    p = tmp_path / "p.toml"
-    p.write_text("[lens]\nslot_width_mm = 0.3\n")
     with pytest.raises(LampfabError, match=r"p\.toml: \[lens\] slot_width_mm 0\.3: allowed 0 \(no slots\) or 0\.5 to 3"):
-        profile.load_design(str(p))
-    p.write_text("[lens]\nslot_width_mm = 1.0\n")
-    design = profile.load_design(str(p))
+        _design(tmp_path, "[lens]\nslot_width_mm = 0.3\n")
+    design = _design(tmp_path, "[lens]\nslot_width_mm = 1.0\n")
     profile.check_fab_for(design, profile.load_fabrication("sla_resin"))
     with pytest.raises(LampfabError, match=r"p\.toml: \[lens\] slot_width_mm 1: .*acrylic_cnc4.*cnc4.*FAB=sla_resin"):
         profile.check_fab_for(design, profile.load_fabrication("acrylic_cnc4"))

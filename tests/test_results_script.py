@@ -1,26 +1,16 @@
 """examples/results.py rewrites the tables between its markers from the builds' reports."""
 
-import importlib.util
 import json
-import sys
 
 import pytest
 
-from tests.helpers import ROOT
-
-
-def _load():
-    spec = importlib.util.spec_from_file_location("results", ROOT / "examples" / "results.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+from tests.helpers import load_script
 
 
 @pytest.fixture
 def results(tmp_path, monkeypatch):
     """examples/results.py, its builds under tmp_path/builds."""
-    module = _load()
+    module = load_script("examples/results.py")
     monkeypatch.setattr(module, "BUILDS", tmp_path / "builds")
     return module
 

@@ -139,7 +139,7 @@ def build_step_solid(cyl: surface.Cylinder, inner_vertices: np.ndarray, inner_fa
     faces, deviation dict, bore dict)).
     """
     from OCP.BRep import BRep_Builder
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeVertex
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
     from OCP.Geom import Geom_CylindricalSurface
     from OCP.gp import gp_Ax3, gp_Dir, gp_Pnt
     from OCP.TopoDS import TopoDS, TopoDS_Shell, TopoDS_Solid
@@ -171,19 +171,7 @@ def build_step_solid(cyl: surface.Cylinder, inner_vertices: np.ndarray, inner_fa
     faces = [outer, top, bottom, bore_face, *pockets]
 
     # Cavity: the inner layer's planar regions, normals flipped to point out of the glass.
-    vertex_cache, edge_cache = {}, {}
-
-    def vertex(i):
-        if i not in vertex_cache:
-            vertex_cache[i] = BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, v[i]))).Vertex()
-        return vertex_cache[i]
-
-    def edge(a, b):
-        key = (min(a, b), max(a, b))
-        if key not in edge_cache:
-            edge_cache[key] = BRepBuilderAPI_MakeEdge(vertex(key[0]), vertex(key[1])).Edge()
-        e = edge_cache[key]
-        return e if a == key[0] else e.Reversed()
+    edge = _edges_between(v)
 
     # The bore's circle at the floor: a hole in the floor, or (a counterbore) the outer
     # boundary of the annular shoulder that replaces the floor.
@@ -252,6 +240,28 @@ def _contains_disk(polygon_xy: np.ndarray, radius: float) -> bool:
     return bool(np.min(np.linalg.norm(p + t[:, None] * d, axis=1)) >= radius)
 
 
+def _edges_between(points: np.ndarray):
+    """``edge(a, b)``: the straight edge from ``points[a]`` to ``points[b]`` ((n, 3) mm),
+    each vertex and edge made once, so that the faces on either side of an edge share
+    it; run from b to a, it is the same edge reversed."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeVertex
+    from OCP.gp import gp_Pnt
+
+    vertices, edges = {}, {}
+
+    def vertex(i):
+        if i not in vertices:
+            vertices[i] = BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, points[i]))).Vertex()
+        return vertices[i]
+
+    def edge(a, b):
+        key = (min(a, b), max(a, b))
+        if key not in edges:
+            edges[key] = BRepBuilderAPI_MakeEdge(vertex(key[0]), vertex(key[1])).Edge()
+        return edges[key] if a == key[0] else edges[key].Reversed()
+    return edge
+
+
 def _slot_faces(slots) -> tuple[list, list]:
     """The faces of ``slots``'s pockets (``slots.Slots``, or None: none) and their
     openings in the base as wires, built on shared edges as the rest of the solid is:
@@ -262,34 +272,21 @@ def _slot_faces(slots) -> tuple[list, list]:
     point out of the glass, into the pocket, so each takes its loop clockwise as seen
     from inside the glass, and the base takes the opening the other way round.
     """
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeVertex
-    from OCP.gp import gp_Pnt
-
     if slots is None:
         return [], []
     faces, openings = [], []
     for outline in slots.outlines():
-        corners = [[BRepBuilderAPI_MakeVertex(gp_Pnt(float(x), float(y), z)).Vertex() for x, y in outline]
-                   for z in (0.0, slots.top_mm)]
-        edges = {}
-
-        def edge(a, b):
-            """The edge from corner a to corner b, (level, index) each, made once."""
-            key = tuple(sorted((a, b)))
-            if key not in edges:
-                edges[key] = BRepBuilderAPI_MakeEdge(corners[key[0][0]][key[0][1]], corners[key[1][0]][key[1][1]]).Edge()
-            return edges[key] if (a, b) == key else edges[key].Reversed()
-
         n = len(outline)
+        # Corner k of the outline at the base is point k, under the roof point n + k.
+        edge = _edges_between(np.vstack([np.column_stack([outline, np.full(n, z)]) for z in (0.0, slots.top_mm)]))
         for k in range(n):
             j = (k + 1) % n
             a, b = outline[k], outline[j]
             inward = np.array([-(b[1] - a[1]), b[0] - a[0], 0.0])  # into the pocket: left of a -> b
-            loop = [((0, k), (1, k)), ((1, k), (1, j)), ((1, j), (0, j)), ((0, j), (0, k))]
+            loop = [(k, n + k), (n + k, n + j), (n + j, j), (j, k)]
             faces.append(_planar_face((*(0.5 * (a + b)), 0.5 * slots.top_mm), inward / np.linalg.norm(inward),
                                       _wire([edge(p, q) for p, q in loop])))
-        roof = [((1, (k + 1) % n), (1, k)) for k in reversed(range(n))]
         faces.append(_planar_face((*outline.mean(axis=0), slots.top_mm), (0, 0, -1),
-                                  _wire([edge(p, q) for p, q in roof])))
-        openings.append(_wire([edge((0, k), (0, (k + 1) % n)) for k in range(n)]))
+                                  _wire([edge(n + (k + 1) % n, n + k) for k in reversed(range(n))])))
+        openings.append(_wire([edge(k, (k + 1) % n) for k in range(n)]))
     return faces, openings

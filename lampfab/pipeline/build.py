@@ -126,7 +126,13 @@ class Build:
         return artifacts.StageReport(stage, {**inputs, **files}, self.settings(), seed=self.design.optimize.seed)
 
     def inner(self) -> tuple[np.ndarray, np.ndarray]:
-        """The lamp's inner layer: ((n, 3) mm vertices, (m, 3) int faces), wound outward."""
+        """The lamp's inner layer: ((n, 3) mm vertices, (m, 3) int faces), wound outward;
+        read and checked once per build, the arrays shared by every caller (none writes
+        to them; manifold3d refuses read-only ones)."""
+        return self._inner_layer
+
+    @functools.cached_property
+    def _inner_layer(self) -> tuple[np.ndarray, np.ndarray]:
         from .. import inner
 
         lens = self.design.lens

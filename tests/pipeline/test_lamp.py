@@ -13,7 +13,7 @@ from PIL import Image
 from lampfab import solid
 from lampfab.export import stl
 from lampfab.inner import winding_number
-from tests.helpers import ROOT, TINY_LED, cli, load_bench, make
+from tests.helpers import ROOT, TINY_LED, cli, load_script, make
 
 REPORTS = ["prepare", "plan", "init", "optimize", "solid", "checks", "export", "verify"]
 
@@ -272,7 +272,7 @@ def test_the_slots_benchmark_stops_light_reflected_inside_the_glass(lamp):
     lens."""
     from lampfab import verify
 
-    bench = load_bench("slots")
+    bench = load_script("bench/slots.py")
     loaded = verify.load(lamp[0] / "design.json")
     made = bench.measure(loaded, 400_000, 3)
     with bench.slotted(20.0, 90.0):
