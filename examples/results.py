@@ -250,7 +250,8 @@ def _slots_row(case: Case, after: list[dict], make_seconds: float | None) -> str
     def each(walls, key, digits=3):
         return " / ".join(f"{w[key]:.{digits}f}" for w in walls)
 
-    return (f"| {case.variant_of} | {each(before, 'led_ssim')} | {each(after, 'led_ssim')} | "
+    empty = each(after, 'led_ssim_slots_empty') if all("led_ssim_slots_empty" in w for w in after) else "—"
+    return (f"| {case.variant_of} | {each(before, 'led_ssim')} | {each(after, 'led_ssim')} | {empty} | "
             f"{each(after, 'led_reference_ssim')} | {_span([w['led_pearson'] for w in before])} → "
             f"{_span([w['led_pearson'] for w in after])} | {_span([100 * w['ghost_share'] for w in before], 1)} → "
             f"{_span([100 * w['ghost_share'] for w in after], 1)} % | {sum(w['led_share'] for w in before):.0%} → "
@@ -274,9 +275,9 @@ TABLES = {
     "led_design": ("| image | with the LED, lens designed for a point: r / SSIM | ... designed for the LED | OCR with the LED, "
                    "designed for a point | ... for the LED | ideal point light, designed for a point | ... for the LED |\n"
                    "|---|---|---|---|---|---|---|"),
-    "slots": ("| image | SSIM with the LED, front / left / right: no slots | with slots | the target blurred by the "
-              "LED (with slots) | r with the LED | light reflected inside the lens | light on the walls | OCR with the "
-              "LED | `make lamp` with slots |\n|---|---|---|---|---|---|---|---|---|"),
+    "slots": ("| image | SSIM with the LED, front / left / right: no slots | with slots | ... the slots left empty "
+              "| the target blurred by the LED (with slots) | r with the LED | light reflected inside the lens | light "
+              "on the walls | OCR with the LED | `make lamp` with slots |\n|---|---|---|---|---|---|---|---|---|---|"),
 }
 
 

@@ -86,8 +86,9 @@ def paint(paint_json: dict) -> str:
             f"which would otherwise lie as a faint haze over the pictures. verify traced the lens painted so.")
 
 
-def slots(paint_json: dict) -> str:
-    """The paragraph on filling the black slots (design.json's lens ``slots``), or nothing."""
+def slots(paint_json: dict, walls: dict | None = None) -> str:
+    """The paragraph on filling the black slots (design.json's lens ``slots``), or nothing;
+    with verify's ``walls`` figures it says what the lamp would show with them empty."""
     from .slots import Slots
 
     cut = Slots.from_json(paint_json.get("slots"))
@@ -101,13 +102,29 @@ def slots(paint_json: dict) -> str:
             f"top, fill each from its far end with a syringe and a blunt needle, slowly, so that no bubble stays on "
             f"its walls (a clear casting epoxy tinted with a few per cent of black pigment, which wets the resin). "
             f"The black must touch the walls: light reflected inside the lens meets them at about 45°, and behind "
-            f"an air gap it would be reflected back whole. verify traced the slots filled so.")
+            f"an air gap it would be reflected back whole. verify traced the slots filled so."
+            + _slots_empty(walls or {}))
+
+
+def _slots_empty(walls: dict) -> str:
+    """The sentence on the slots left empty, from verify's walls figures, or nothing."""
+    traced = {n: f for n, f in walls.items() if "led_ssim_slots_empty" in f}
+    if not traced:
+        return ""
+
+    def each(key, form):
+        return " / ".join(format(f[key], form) for f in traced.values())
+    return (f" Traced again with the slots left empty, the walls ({' / '.join(traced)}) score LED SSIM "
+            f"{each('led_ssim_slots_empty', '.2f')} instead of {each('led_ssim', '.2f')}, with "
+            f"{each('led_ghost_share_slots_empty', '.1%')} of their light reflected inside the lens instead of "
+            f"{each('led_ghost_share', '.1%')} (the bundled apple's lens left so would be worse than one made "
+            f"without slots).")
 
 
 def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: dict,
-           paint_json: dict | None = None) -> list[str]:
+           paint_json: dict | None = None, walls: dict | None = None) -> list[str]:
     """Plain-text paragraphs: orientation, the LED, finishing, the black paint and
-    slots, the polishing allowance."""
+    slots (with verify's ``walls`` figures), the polishing allowance."""
     allowance = study["allowance_mm"] * 1000
     bound = "at least " if study["allowance_at_least"] else ""
     error = study["profile_error_mm"] * 1000
@@ -118,7 +135,7 @@ def advice(fab: Fabrication, led: Led, wall_names: list[str], light_mm, study: d
          f"a stalk, {_MOUNTED[led.shape]} {light_mm[2]:g} mm above the base on the axis; the design assumes "
          f"{_SHINES[led.shape]}, with the size of its profile ({led.name})." + _fins(led)),
         _FINISH[fab.process],
-        *[p for p in (paint(paint_json or {}), slots(paint_json or {})) if p],
+        *[p for p in (paint(paint_json or {}), slots(paint_json or {}, walls)) if p],
         (f"Polishing allowance: uneven removal of up to {bound}{allowance:.0f} um (peak, over patches of "
          f"~{study['correlation_mm']:g} mm) keeps every wall's Pearson r within {study['r_drop']} of the design. "
          f"This profile's surface error, {error:.0f} um, costs r {study['profile_error_drop']:.3f}"

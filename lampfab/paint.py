@@ -74,11 +74,13 @@ def painted_faces(vertices: np.ndarray, faces: np.ndarray, choice: str, height_m
     return painted
 
 
-def painted_from_json(vertices: np.ndarray, faces: np.ndarray, lens: dict) -> np.ndarray:
+def painted_from_json(vertices: np.ndarray, faces: np.ndarray, lens: dict, slots_filled: bool = True) -> np.ndarray:
     """``painted_faces`` of a lens solid (vertices (n, 3) float64 mm, the base on z = 0,
     faces (m, 3) int) as design.json's ``lens`` says (``black_paint``, ``painted_u_deg``,
-    ``slots``; a design without them is unpainted and has none): (m,) bool."""
+    ``slots``; a design without them is unpainted and has none): (m,) bool.  With
+    ``slots_filled`` False the slots' walls stay clear, as a maker who leaves them empty
+    gets them."""
     from .slots import Slots
 
     return painted_faces(vertices, faces, lens.get("black_paint", "none"), float(vertices[:, 2].max()),
-                         lens.get("painted_u_deg"), Slots.from_json(lens.get("slots")))
+                         lens.get("painted_u_deg"), Slots.from_json(lens.get("slots")) if slots_filled else None)

@@ -74,8 +74,13 @@ def test_the_slots_table_sets_each_slotted_lens_beside_the_default_one(results, 
     for wall, ssim in zip(slotted["figures"]["walls"].values(), (0.90, 0.899)):
         wall.update(led_ssim=ssim, ghost_share=0.005, led_share=0.19)
     walls.write_text(json.dumps(slotted))
-    assert _table_rows(results, tmp_path, "slots", "| star") == ["| star | 0.610 / 0.640 | 0.900 / 0.899 | 0.945 / 0.945 | 0.985 → 0.986 | 7.9 → 0.5 % | "
-                    "37% → 38% | — → — | 4.5 min |"]
+    assert _table_rows(results, tmp_path, "slots", "| star") == ["| star | 0.610 / 0.640 | 0.900 / 0.899 | — | 0.945 / 0.945 | "
+                                                                 "0.985 → 0.986 | 7.9 → 0.5 % | 37% → 38% | — → — | 4.5 min |"]
+    # verify traced the slots left empty too (builds since it does): their SSIM beside.
+    for wall, ssim in zip(slotted["figures"]["walls"].values(), (0.71, 0.725)):
+        wall.update(led_ssim_slots_empty=ssim)
+    walls.write_text(json.dumps(slotted))
+    assert "| 0.900 / 0.899 | 0.710 / 0.725 | 0.945 / 0.945 |" in _table_rows(results, tmp_path, "slots", "| star")[0]
 
 
 def test_a_case_without_a_build_here_keeps_the_row_the_page_has(results, tmp_path):

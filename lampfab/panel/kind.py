@@ -84,7 +84,7 @@ class Panel(LensKind):
     def light_json(self, build) -> dict:
         return panel.light_json(shape(build), build.design.panel.divergence_deg)
 
-    def finishing(self, build) -> dict:
+    def finishing(self, build, walls: dict) -> dict:
         """The lamp's tolerance study and finishing advice are not made for a panel."""
         return {}
 

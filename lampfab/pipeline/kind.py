@@ -71,8 +71,9 @@ class LensKind(ABC):
         return {"black_paint": "none"}
 
     @abstractmethod
-    def finishing(self, build) -> dict:
-        """verify.json's tolerance study and finishing advice ({} where there are none)."""
+    def finishing(self, build, walls: dict) -> dict:
+        """verify.json's tolerance study and finishing advice ({} where there are none),
+        which may cite verify's figures of the ``walls``."""
 
     @abstractmethod
     def report_light(self, build, design: dict) -> dict:
@@ -216,7 +217,7 @@ class Lamp(LensKind):
         return {"black_paint": choice, "painted_u_deg": None if back is None else [round(a, 2) for a in back],
                 "slots": None if slots is None else slots.to_json()}
 
-    def finishing(self, build) -> dict:
+    def finishing(self, build, walls: dict) -> dict:
         """The tolerance study and the post-processing guidance (``guidance``)."""
         from .. import artifacts, guidance, tolerance_study
 
@@ -235,7 +236,7 @@ class Lamp(LensKind):
                      f"costs r {study['profile_error_drop']:.3f}")
         return {"tolerance": study,
                 "guidance": guidance.advice(fab, build.led, [w.name for w in build.walls], build.light, study,
-                                            artifacts.read_json(build.design_file)["lens"])}
+                                            artifacts.read_json(build.design_file)["lens"], walls)}
 
     def report_light(self, build, design: dict) -> dict:
         return design["light"]

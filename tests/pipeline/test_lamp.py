@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from lampfab import solid
+from lampfab import paint, solid, verify
 from lampfab.export import stl
 from lampfab.inner import winding_number
+from lampfab.slots import Slots
 from tests.helpers import ROOT, TINY_LED, cli, load_script, make
 
 REPORTS = ["prepare", "plan", "init", "optimize", "solid", "checks", "export", "verify"]
@@ -270,8 +271,6 @@ def test_the_slots_benchmark_stops_light_reflected_inside_the_glass(lamp):
     """bench/slots.py on the made lamp: with its black half-planes at the sectors' edges
     the same photons put less light on the walls, and less of it reflected inside the
     lens."""
-    from lampfab import verify
-
     bench = load_script("bench/slots.py")
     loaded = verify.load(lamp[0] / "design.json")
     made = bench.measure(loaded, 400_000, 3)
@@ -287,7 +286,7 @@ def test_a_slotted_lamp_has_its_slots_in_every_file_and_in_the_light(lamp, tmp_p
     """`slot_width_mm` through the pipeline: the refinement stops light in the slots, the
     solid, the STL and the STEP have them, verify traces them black and the report tells
     the maker to fill them; the same image without them reflects more light inside the
-    lens."""
+    lens, and so does this lens with its slots left empty."""
     from lampfab.export import step_file
 
     run = make("lamp", f"BUILD={tmp_path / 'b'}", "NAME=apple", f"PROFILE={tiny_with('slots.toml', 'slot_width_mm = 1.0')}")
@@ -309,7 +308,18 @@ def test_a_slotted_lamp_has_its_slots_in_every_file_and_in_the_light(lamp, tmp_p
     assert step_file.read_step(out / "lens.step")["valid"]
     walls, plain_walls = report("verify")["walls"], json.loads((lamp[0] / "verify.json").read_text())["figures"]["walls"]
     assert sum(w["ghost_share"] for w in walls.values()) < sum(w["ghost_share"] for w in plain_walls.values())
-    assert "Fill the 4 slots that open in the base" in (out / "report.html").read_text()
+    for w in walls.values():
+        assert w["led_ghost_share_slots_empty"] > 2 * w["led_ghost_share"], w
+        assert 0.0 < w["led_ssim_slots_empty"] < 1.0
+    loaded = verify.load(out / "design.json")
+    empty = verify.slots_left_empty(loaded)  # only the slots' walls are cleared
+    lens, top = design["lens"], float(v[:, 2].max())
+    assert np.array_equal(empty.painted, paint.painted_faces(v, f, lens["black_paint"], top, lens["painted_u_deg"]))
+    assert np.array_equal(loaded.painted, empty.painted | paint.painted_faces(v, f, "none", top,
+                                                                               slots=Slots.from_json(cut)))
+    assert np.sum(loaded.painted) > np.sum(empty.painted)
+    page = (out / "report.html").read_text()
+    assert "Fill the 4 slots that open in the base" in page and "Traced again with the slots left empty" in page
 
 
 @pytest.mark.slow

@@ -46,12 +46,14 @@ def verify(build: Build) -> dict:
             + (f", contrast on black {f['led_contrast_ratio']:.0f}:1" if f.get("led_contrast_ratio") else "")
             + f"; with a point light r {f['pearson']:.3f}, SSIM {f['ssim']:.3f}, {f['ghost_share']:.1%} of it "
               f"reflected inside the lens"
+            + (f"; its slots left empty: SSIM {f['led_ssim_slots_empty']:.3f}, "
+               f"{f['led_ghost_share_slots_empty']:.1%} reflected inside" if "led_ssim_slots_empty" in f else "")
             + (f"; Mitsuba r {f['mitsuba_pearson']:.3f}" if "mitsuba_pearson" in f else "")
             + (f"; r {f['optimizer_pearson']:.3f} against the optimizer's render" if "optimizer_pearson" in f else ""))
     if figures.get("optimizer_match_min", 1.0) < OPTIMIZER_MATCH_R:
         log(f"verify: WARNING: the exported lens's render matches the optimizer's only to r "
             f"{figures['optimizer_match_min']:.3f} (< {OPTIMIZER_MATCH_R})")
-    figures.update(build.kind.finishing(build))
+    figures.update(build.kind.finishing(build, figures["walls"]))
     bar.begin("the lamp's renders")
     report.figure(**figures)
     pictures = report_page.pictures(build, loaded)
