@@ -207,10 +207,10 @@ def _slots_empty(empty: np.ndarray, empty_ghosts: np.ndarray, led_ghosts: np.nda
     """A wall's figures for a lens whose slots are left empty: its LED render (``empty``,
     with ``empty_ghosts`` the light in it reflected inside the lens) against the target,
     and the share of the light reflected inside with the slots filled (``led``,
-    ``led_ghosts``) and empty.  The empty render traces a quarter of the filled one's
-    photons (verify's ``photons``, not ``led_photons``): its own noise takes up to about
-    0.02 more off its SSIM on a black background (bench/RESULTS.md), far less than
-    leaving the slots empty does."""
+    ``led_ghosts``) and empty.  The empty render traces verify's ``photons``, not
+    ``led_photons`` (a quarter of them in the default profile): its own noise then takes
+    up to about 0.02 more off its SSIM on a black background (bench/RESULTS.md), far
+    less than leaving the slots empty does."""
     return {"led_ssim_slots_empty": metrics.ssim(empty, target),
             "led_ghost_share": float(led_ghosts.sum() / max(led.sum(), 1e-300)),
             "led_ghost_share_slots_empty": float(empty_ghosts.sum() / max(empty.sum(), 1e-300))}
