@@ -54,6 +54,8 @@ def _key_figure(stage: str, figs: dict) -> str:
         return (f"lens.stl {figs['stl_bytes'] / 1e6:.1f} MB, lens.step {figs['step_bytes'] / 1e6:.1f} MB, "
                 f"B-spline within {figs['bspline_deviation_mm'] * 1000:.2g} µm"
                 + (", fins.stl" if "fins_stl_bytes" in figs else ""))
-    return ", ".join(f"{n} r {f['led_pearson']:.2f} SSIM {f['led_ssim']:.2f}"
-                     + (f" {f['led_words_read']}/{f['words']} words read" if "words" in f else "")
-                     for n, f in figs["walls"].items()) + f" with the {figs['real_light']}"
+    empty = [f["led_ssim_slots_empty"] for f in figs["walls"].values() if "led_ssim_slots_empty" in f]
+    return (", ".join(f"{n} r {f['led_pearson']:.2f} SSIM {f['led_ssim']:.2f}"
+                      + (f" {f['led_words_read']}/{f['words']} words read" if "words" in f else "")
+                      for n, f in figs["walls"].items()) + f" with the {figs['real_light']}"
+            + (f"; slots left empty: SSIM {min(empty):.2f}-{max(empty):.2f}" if empty else ""))
