@@ -89,8 +89,7 @@ class Slots:
         """Each slot's cross-section, (4, 2) float64 mm, counter-clockwise."""
         out = []
         for s in self.slots:
-            a = np.radians(s.azimuth_deg)
-            along, across = np.array([np.cos(a), np.sin(a)]), np.array([-np.sin(a), np.cos(a)])
+            along, across = _axes(s.azimuth_deg)
             half = 0.5 * self.width_mm
             out.append(np.array([s.from_mm * along - half * across, s.to_mm * along - half * across,
                                  s.to_mm * along + half * across, s.from_mm * along + half * across]))
@@ -117,10 +116,10 @@ class Slots:
         stopped = dr.zeros(mi.Bool, dr.width(d))
         half = 0.5 * self.width_mm
         for s in self.slots:
-            a = np.radians(s.azimuth_deg)
+            along, across = _axes(s.azimuth_deg)
             enter, leave = dr.zeros(mi.Float, dr.width(d)), dr.full(mi.Float, dr.inf, dr.width(d))
-            for axis, lo, hi in (((np.cos(a), np.sin(a), 0.0), s.from_mm, s.to_mm),
-                                 ((-np.sin(a), np.cos(a), 0.0), -half, half), ((0.0, 0.0, 1.0), 0.0, self.top_mm)):
+            for axis, lo, hi in (((*along, 0.0), s.from_mm, s.to_mm), ((*across, 0.0), -half, half),
+                                 ((0.0, 0.0, 1.0), 0.0, self.top_mm)):
                 v = mi.Vector3f(*map(float, axis))
                 start, rate = dr.dot(o, v), dr.dot(d, v)
                 # Parallel to a slab, t1 and t2 are infinite: of opposite signs inside it (no
@@ -137,12 +136,18 @@ class Slots:
         out = np.zeros(len(centres), bool)
         within_z = (centres[:, 2] > -ON_WALL_MM) & (centres[:, 2] < self.top_mm + ON_WALL_MM)
         for s in self.slots:
-            a = np.radians(s.azimuth_deg)
-            along = centres[:, 0] * np.cos(a) + centres[:, 1] * np.sin(a)
-            across = -centres[:, 0] * np.sin(a) + centres[:, 1] * np.cos(a)
+            axes = _axes(s.azimuth_deg)
+            along, across = centres[:, :2] @ axes[0], centres[:, :2] @ axes[1]
             out |= (within_z & (along > s.from_mm - ON_WALL_MM) & (along < s.to_mm + ON_WALL_MM)
                     & (np.abs(across) < 0.5 * self.width_mm + ON_WALL_MM))
         return out
+
+
+def _axes(azimuth_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """A slot's frame in the xy plane: (along it, out from the axis; across it, a quarter
+    turn counter-clockwise), unit (2,) float64."""
+    a = np.radians(azimuth_deg)
+    return np.array([np.cos(a), np.sin(a)]), np.array([-np.sin(a), np.cos(a)])
 
 
 def sector_edges_deg(sectors_deg: dict[str, tuple[float, float]]) -> tuple[float, ...]:
@@ -176,9 +181,9 @@ def plan(width_mm: float, sectors_deg: dict[str, tuple[float, float]], cavity_re
     half = 0.5 * width_mm
     slots = []
     for edge in sector_edges_deg(sectors_deg):
-        a = np.radians(edge)
-        along = outer_vertices[:, 0] * np.cos(a) + outer_vertices[:, 1] * np.sin(a)
-        beside = np.maximum(np.abs(-outer_vertices[:, 0] * np.sin(a) + outer_vertices[:, 1] * np.cos(a)) - half, 0.0)
+        axes = _axes(edge)
+        along = outer_vertices[:, :2] @ axes[0]
+        beside = np.maximum(np.abs(outer_vertices[:, :2] @ axes[1]) - half, 0.0)
         above = np.maximum(outer_vertices[:, 2] - top, 0.0)
         near = beside ** 2 + above ** 2
         close = (along > 0) & (near < min_wall_mm ** 2)

@@ -146,10 +146,13 @@ def verify(loaded: Loaded, out_dir, image_px: int, photons: int, seed: int, max_
                                                       led_photons=led_photons)
     mitsuba = _mitsuba(loaded, [p.shape for p in point], mitsuba_photons, seed + 2) \
         if kernels is not None and mitsuba_photons else None
+    slotted = bool(design["lens"].get("slots"))
+    if slotted:
+        empty, empty_info = render_design(slots_left_empty(loaded), image_px, photons, seed + 3, max_bounces)
     figures = {"walls": {}, "lost_share": info["lost"], "trapped_share": info["trapped"],
                "led_radius_mm": design["light"]["radius"], "photons": photons,
                "led_photons": int(led_info["photons"]),
-               "real_light": _real_light(design["light"])}
+               "real_light": _real_light(design["light"]), **({"slots_empty_photons": photons} if slotted else {})}
     for k, wall in enumerate(walls):
         target = loaded.target(k, point[k].shape)
         sharp = metrics.compare(point[k], target)
@@ -169,6 +172,8 @@ def verify(loaded: Loaded, out_dir, image_px: int, photons: int, seed: int, max_
                 f.update({f"{prefix}contrast_ratio": dark["ratio"], f"{prefix}black_share": dark["black_share"]})
         if texts and wall.name in texts:
             f.update(_words_read(texts[wall.name], target, point[k], led[k]))
+        if slotted:
+            f.update(_slots_empty(empty[k], empty_info["ghosts"][k], led_info["ghosts"][k], led[k], target))
         arrays = {"point": point[k], "led": led[k], "ghosts": ghosts}
         if kernels is not None and len(kernels.on(k, wall)):
             f.update(_led_reference(kernels, k, wall, target, point[k], led[k], led_info["ghosts"][k],
@@ -184,12 +189,6 @@ def verify(loaded: Loaded, out_dir, image_px: int, photons: int, seed: int, max_
         artifacts.write_npz(npz, **arrays)
     if mitsuba is not None:
         figures["mitsuba"] = {"photons_per_wall": mitsuba["photons"], "seconds": mitsuba["seconds"]}
-    if design["lens"].get("slots"):
-        figures["slots_empty_photons"] = photons
-        empty, empty_info = render_design(slots_left_empty(loaded), image_px, photons, seed + 3, max_bounces)
-        for k, wall in enumerate(walls):
-            figures["walls"][wall.name].update(_slots_empty(empty[k], empty_info["ghosts"][k], led_info["ghosts"][k],
-                                                            led[k], loaded.target(k, empty[k].shape)))
     return figures
 
 
