@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..report import number, span
 from .build import STAGES, Build
 
 
@@ -58,4 +59,4 @@ def _key_figure(stage: str, figs: dict) -> str:
     return (", ".join(f"{n} r {f['led_pearson']:.2f} SSIM {f['led_ssim']:.2f}"
                       + (f" {f['led_words_read']}/{f['words']} words read" if "words" in f else "")
                       for n, f in figs["walls"].items()) + f" with the {figs['real_light']}"
-            + (f"; slots left empty: SSIM {min(empty):.2f}-{max(empty):.2f}" if empty else ""))
+            + (f"; slots left empty: SSIM {span(empty, lambda v: number(v, 2))}" if empty else ""))
