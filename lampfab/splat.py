@@ -123,8 +123,13 @@ class SplatOptimizer(Optimizer):
         Returns (corner vertex indices (k, 3) of the facet each of the k photons that
         met the outer surface crossed, the facet corners as Dr.Jit leaves (gradients
         enabled when ``grad``), the photons' flux weights (k,) float64, and per view
-        (x, y, ok): Dr.Jit pixel coordinates and a numpy bool mask of photons that leave
-        the glass towards the wall's plane).
+        (which (n,) int64 of the k photons land on or near the wall's picture, and their
+        pixel coordinates x, y as Dr.Jit Floats (n,)).
+
+        Each photon lands on one wall at most, so each view keeps about a third of them:
+        chosen in Dr.Jit, only those come to numpy (converting and filtering every
+        photon for every wall took a sixth of a fine step).  "Near": within a pixel of
+        the picture, wider than ``_landed``'s exact bound, which decides in float64.
         """
         import drjit as dr
 
@@ -172,23 +177,23 @@ class SplatOptimizer(Optimizer):
             rel = p + t * out - origin
             x = dr.dot(rel, mi.Vector3f(*wall.right.tolist())) / wall.width_mm**2 * cols - 0.5
             y = dr.dot(rel, mi.Vector3f(*wall.down.tolist())) / wall.height_mm**2 * rows - 0.5
-            ok = leaves & (denom < 0) & (t > 0)
-            dr.eval(x, y, ok)
-            per_view.append((x, y, ok.numpy()))
+            near = leaves & (denom < 0) & (t > 0) & (x > -1.5) & (x < cols + 0.5) & (y > -1.5) & (y < rows + 0.5)
+            which = dr.compress(near)
+            x, y = dr.gather(mi.Float, x, which), dr.gather(mi.Float, y, which)
+            dr.eval(x, y)
+            per_view.append((which.numpy().astype(np.int64), x, y))
         return corners, v, weights, per_view
 
-    def _landed(self, x: np.ndarray, y: np.ndarray, ok: np.ndarray, view: int, weight: np.ndarray) -> "_Landed":
-        """The photons of flux ``weight`` (k,) that land on wall ``view`` at pixel
-        coordinates (x, y) (k,) float64 (where ``ok``), placed on its splat grid: one
-        ``SUPERSAMPLE`` times finer than the image, with a border of one cell on every
-        side, so each photon's four bilinear corners fall inside it."""
+    def _landed(self, x: np.ndarray, y: np.ndarray, view: int, weight) -> "_Landed":
+        """The photons of flux ``weight`` ((n,) or one for all) near wall ``view``'s
+        picture at pixel coordinates (x, y) (n,) float64, those that land on it placed on
+        its splat grid: one ``SUPERSAMPLE`` times finer than the image, with a border of
+        one cell on every side, so each photon's four bilinear corners fall inside it."""
         rows, cols = self.shapes[view]
         s = SUPERSAMPLE
         fine_rows, fine_cols = rows * s, cols * s
         xf, yf = (x + 0.5) * s - 0.5, (y + 0.5) * s - 0.5
-        ok = ok & (xf > -1) & (xf < fine_cols) & (yf > -1) & (yf < fine_rows)  # NaN compares False
-        # Each photon lands on one wall at most: the others' arrays shrink to a third.
-        sel = np.flatnonzero(ok)
+        sel = np.flatnonzero((xf > -1) & (xf < fine_cols) & (yf > -1) & (yf < fine_rows))
         xf, yf = xf[sel], yf[sel]
         x0, y0 = np.floor(xf), np.floor(yf)
         fx, fy = xf - x0, yf - y0
@@ -211,7 +216,7 @@ class SplatOptimizer(Optimizer):
 
     @staticmethod
     def _image_adjoint(landed: "_Landed", grad_image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The loss's gradient per photon with respect to x and y, ((k,), (k,)) float64,
+        """The loss's gradient per photon with respect to x and y, ((n,), (n,)) float64,
         from its gradient per pixel ``grad_image`` (rows*cols,)."""
         rows, cols = landed.shape
         s, width = SUPERSAMPLE, landed.width
@@ -248,9 +253,8 @@ class SplatOptimizer(Optimizer):
         self._photons(seed, level)
         self._set_heights(heights)
         _, _, weights, per_view = self._landing(views, grad=False)
-        return [self._image(self._landed(x.numpy().astype(np.float64), y.numpy().astype(np.float64), ok, view,
-                                         weights / self.n_photons)).reshape(self.shapes[view])
-                for view, (x, y, ok) in zip(views, per_view)]
+        return [self._image(self._landed(_float64(x), _float64(y), view, weights[which] / self.n_photons))
+                .reshape(self.shapes[view]) for view, (which, x, y) in zip(views, per_view)]
 
     def gradient(self, heights: np.ndarray, views: list[int], seed: int, level: int = -1) -> tuple[float, np.ndarray]:
         import drjit as dr
@@ -263,15 +267,16 @@ class SplatOptimizer(Optimizer):
         weights = self.opt.loss_weights or (1.0,) * len(self.walls)
         total = 0.0
         surrogate = self.mi.Float(0.0)
-        for view, (x, y, ok) in zip(views, per_view):
-            landed = self._landed(x.numpy().astype(np.float64), y.numpy().astype(np.float64), ok, view, flux)
+        for view, (which, x, y) in zip(views, per_view):
+            landed = self._landed(_float64(x), _float64(y), view, flux[which])
             image = self._image(landed).reshape(self.shapes[view])
             loss, grad_image = losses.view_loss_and_grad(self.opt.loss, image, self.targets[view], weights[view])
             total += loss
             gx, gy = self._image_adjoint(landed, grad_image.ravel())
             # Linear in x and y with the loss's slopes: its backward pass gives each
-            # photon's facet corners their gradient, photon by photon (no sums).
-            surrogate = surrogate + _jit_float(self.mi, gx) * x + _jit_float(self.mi, gy) * y
+            # photon's facet corners their gradient, photon by photon (the adjoints of
+            # the sum and of the gather above add nothing up: each photon is one term).
+            surrogate = surrogate + dr.sum(_jit_float(self.mi, gx) * x + _jit_float(self.mi, gy) * y)
         dr.backward(surrogate)
         grads = [dr.grad(corner) for corner in v]
         dr.eval(grads)  # one kernel for all nine components
@@ -289,8 +294,8 @@ class SplatOptimizer(Optimizer):
 class _Landed:
     """Photons on one wall's splat grid (see ``SplatOptimizer._landed``)."""
 
-    sel: np.ndarray  # (k,) int64: which of the step's photons these are
-    count: int  # the step's photons, on every wall
+    sel: np.ndarray  # (k,) int64: which of the photons near the wall these are
+    count: int  # the photons near the wall
     corner: np.ndarray  # (k,) int64: each one's upper-left corner on the bordered grid
     fx: np.ndarray  # (k,) float64: where in that cell, 0-1 across
     fy: np.ndarray  # (k,) float64: and down
@@ -301,6 +306,11 @@ class _Landed:
     def width(self) -> int:
         """The bordered grid's width."""
         return self.shape[1] * SUPERSAMPLE + 2
+
+
+def _float64(values) -> np.ndarray:
+    """A Dr.Jit Float as (n,) float64."""
+    return values.numpy().astype(np.float64)
 
 
 def _jit_float(mi, values: np.ndarray):

@@ -106,7 +106,7 @@ def test_splat_image_is_the_photon_count_per_pixel(tiny_design, inner_layer, tin
     py, px = rng.integers(0, rows, 400_000), rng.integers(0, cols, 400_000)
     lit = (px + py) % 2 == 0
     x, y = px[lit] + rng.uniform(-0.5, 0.5, lit.sum()), py[lit] + rng.uniform(-0.5, 0.5, lit.sum())
-    image = opt._image(opt._landed(x, y, np.ones(len(x), bool), 0, 1.0 / 400_000)).reshape(rows, cols)
+    image = opt._image(opt._landed(x, y, 0, 1.0 / 400_000)).reshape(rows, cols)
     binned = np.zeros((rows, cols))
     np.add.at(binned, (py[lit], px[lit]), 1.0 / 400_000)
     inner = (slice(1, -1), slice(1, -1))  # border pixels lose their outer sub-pixels' spill
