@@ -12,6 +12,7 @@ Heavy libraries load inside the stages, so ``--help`` answers at once.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -174,6 +175,11 @@ def main(argv: list[str] | None = None, stage: str | None = None) -> int:
     except KeyboardInterrupt:
         print("lampfab: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # The reader stopped early (`lampfab profiles | head`): say nothing more, and keep
+        # Python's flush at exit from failing on the closed pipe again.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     return 0
 
 

@@ -3,21 +3,21 @@
 A design profile (``profiles/NAME.toml``) sets the lens, the room and the optimizer; a
 fabrication profile (``profiles/fab/NAME.toml``) sets the material and the machine's
 limits.  An unknown key, a wrong type or a value out of range is a LampfabError that
-names the file, the key and what is allowed.
+names the file, the key and what is allowed.  ``profile_files`` finds and reads the
+files (a design profile over its ``base``).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from .errors import LampfabError
+from .profile_files import PROFILE_DIR, design_tables, read_toml, resolve
 from .source import SHAPES
 
-PROFILE_DIR = Path(__file__).resolve().parent.parent / "profiles"
 DEFAULT_LED = "post3535"
 WALL_NAMES = ("front", "left", "right", "floor")
 LENS_KINDS = ("cylinder", "panel")
@@ -260,51 +260,26 @@ def _check_value(cls, f: dataclasses.Field, value: Any, where: str) -> Any:
     return value
 
 
-def _build(cls, table: dict, path: Path, section: str):
+def _build(cls, table: dict, path: Path, section: str, origins: dict | None = None):
+    """``cls`` from a profile's ``table``; errors name the file that set the key
+    (``origins`` {(section, key): path}, else ``path``)."""
     known = {f.name: f for f in dataclasses.fields(cls) if f.name != "path"}
     values = {}
     for key, value in table.items():
-        where = f"{path}: [{section}] {key}" if section else f"{path}: {key}"
+        source = (origins or {}).get((section, key), path)
+        where = f"{source}: [{section}] {key}" if section else f"{source}: {key}"
         if key not in known:
             raise LampfabError(f"{where}: unknown key; allowed: {', '.join(sorted(known))}")
         values[key] = _check_value(cls, known[key], value, where)
     return cls(**values)
 
 
-def _read_toml(path: Path) -> dict:
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise LampfabError(f"{path}: profile not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise LampfabError(f"{path}: not valid TOML ({exc})") from None
-
-
-def resolve(name_or_path: str, folder: Path) -> Path:
-    """A profile given by name (``draft``) or path (``my.toml``)."""
-    p = Path(name_or_path)
-    if p.suffix == ".toml" or p.exists():
-        return p
-    candidate = folder / f"{name_or_path}.toml"
-    if not candidate.exists():
-        names = sorted(q.stem for q in folder.glob("*.toml"))
-        raise LampfabError(f"profile {name_or_path!r} not found in {folder}; available: {', '.join(names)}")
-    return candidate
-
-
 def load_design(name_or_path: str) -> Design:
     path = resolve(name_or_path, PROFILE_DIR)
-    data = _read_toml(path)
-    unknown = set(data) - set(SECTIONS)
-    if unknown:
-        raise LampfabError(f"{path}: unknown section [{sorted(unknown)[0]}]; allowed: {', '.join(SECTIONS)}")
+    data, origins = design_tables(path, SECTIONS)
     parts = {}
     for section, cls in SECTIONS.items():
-        table = data.get(section, {})
-        if not isinstance(table, dict):
-            raise LampfabError(f"{path}: [{section}] must be a table")
-        parts[section] = _build(cls, table, path, section)
+        parts[section] = _build(cls, data.get(section, {}), path, section, origins)
     design = Design(name=path.stem, path=str(path), **parts)
     if design.lens.inner_mesh and "hollow_radius_mm" in data.get("lens", {}):
         raise LampfabError(f"{path}: [lens] hollow_radius_mm sizes the bundled inner layer, and inner_mesh "
@@ -320,7 +295,7 @@ def load_design(name_or_path: str) -> Design:
 
 def load_fabrication(name_or_path: str) -> Fabrication:
     path = resolve(name_or_path, PROFILE_DIR / "fab")
-    data = _read_toml(path)
+    data = read_toml(path)
     fab = _build(Fabrication, data, path, "")
     if not fab.name:
         fab = dataclasses.replace(fab, name=path.stem)
@@ -335,7 +310,7 @@ def load_fabrication(name_or_path: str) -> Fabrication:
 
 def load_led(name_or_path: str) -> Led:
     path = resolve(name_or_path, PROFILE_DIR / "led")
-    led = _build(Led, _read_toml(path), path, "")
+    led = _build(Led, read_toml(path), path, "")
     if led.shape == "cylinder" and not led.length_mm > 0:
         raise LampfabError(f"{path}: length_mm {led.length_mm}: a filament (shape cylinder) needs a length above 0")
     if led.shape != "cylinder" and led.length_mm:

@@ -1,3 +1,5 @@
+import re
+
 import pytest
 
 from lampfab import profile
@@ -176,3 +178,58 @@ def test_slots_are_half_a_millimetre_wide_at_least_and_only_printed(tmp_path):
     with pytest.raises(LampfabError, match=r"p\.toml: \[lens\] slot_width_mm 1: .*acrylic_cnc4.*cnc4.*FAB=sla_resin"):
         profile.check_fab_for(design, profile.load_fabrication("acrylic_cnc4"))
     profile.check_fab_for(profile.load_design("default"), profile.load_fabrication("acrylic_cnc4"))
+
+
+def _resolved(design) -> dict:
+    d = profile.as_dict(design)
+    d.pop("path"), d.pop("name")
+    return d
+
+
+def test_a_profile_on_a_base_is_the_base_with_what_it_sets(tmp_path):
+    """The README's two-line profile: the default with slots, nothing else changed."""
+    mine = tmp_path / "my_slots.toml"
+    mine.write_text('base = "default"\n\n[lens]\nslot_width_mm = 1.0\n')
+    design, default = profile.load_design(str(mine)), profile.load_design("default")
+    assert design.name == "my_slots" and design.lens.slot_width_mm == 1.0
+    expected = _resolved(default)
+    expected["lens"]["slot_width_mm"] = 1.0
+    assert _resolved(design) == expected
+
+
+def test_a_base_path_is_read_from_the_profiles_folder_and_errors_name_the_file_that_set_the_key(tmp_path):
+    (tmp_path / "wide.toml").write_text('base = "default"\n[room]\ntarget_height_mm = 700\n')
+    (tmp_path / "wider.toml").write_text('base = "wide.toml"\n[optimize]\niterations = 12\n')
+    design = profile.load_design(str(tmp_path / "wider.toml"))
+    assert design.room.target_height_mm == 700.0 and design.optimize.iterations == 12
+    assert design.lens == profile.load_design("default").lens
+    (tmp_path / "wide.toml").write_text('base = "default"\n[room]\ntarget_height_mm = -5\n')
+    with pytest.raises(LampfabError, match=rf"^{re.escape(str(tmp_path / 'wide.toml'))}: \[room\] target_height_mm"):
+        profile.load_design(str(tmp_path / "wider.toml"))
+
+
+@pytest.mark.parametrize("base, words", [
+    ('"no_such_profile"', ["loop_a.toml: base", "no_such_profile", "available"]),
+    ('"missing.toml"', ["loop_a.toml: base", "missing.toml not found"]),
+    ("3", ["base", "expected a profile's name"]),
+    ('"loop_b.toml"', ["name each other", "loop_a.toml", "loop_b.toml"]),
+])
+def test_a_bad_base_is_one_clear_error(tmp_path, base, words):
+    (tmp_path / "loop_a.toml").write_text(f"base = {base}\n")
+    (tmp_path / "loop_b.toml").write_text('base = "loop_a.toml"\n')
+    with pytest.raises(LampfabError) as err:
+        profile.load_design(str(tmp_path / "loop_a.toml"))
+    assert "\n" not in str(err.value)
+    for w in words:
+        assert w in str(err.value)
+
+
+@pytest.mark.parametrize("name", ["floor", "quick", "hires"])
+def test_the_bundled_variants_follow_the_default_where_they_say_nothing(name):
+    variant, default = _resolved(profile.load_design(name)), _resolved(profile.load_design("default"))
+    text = (profile.PROFILE_DIR / f"{name}.toml").read_text()
+    assert 'base = "default"' in text
+    for section, values in default.items():
+        for key, value in values.items():
+            if f"\n{key} =" not in text:
+                assert variant[section][key] == value, (section, key)

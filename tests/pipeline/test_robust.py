@@ -500,3 +500,16 @@ def test_setup_refuses_an_old_python_with_one_line(tmp_path):
     run = subprocess.run(["bash", str(ROOT / "stages" / "00_setup.sh")], env=env, capture_output=True, text=True)
     assert run.returncode == 1
     assert run.stderr.strip() == "lampfab setup: needs Python 3.11 or newer as python3 (found: Python 3.10.12)"
+
+
+def test_a_reader_that_stops_early_gets_no_traceback():
+    """`lampfab profiles | head -1`: the listing stops quietly when its reader does (here
+    a pipe whose reader is gone before the listing starts, so every write fails)."""
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        run = subprocess.run([sys.executable, "-m", "lampfab.cli", "profiles"], cwd=ROOT, stdout=write,
+                             stderr=subprocess.PIPE, text=True)
+    finally:
+        os.close(write)
+    assert run.returncode == 141 and run.stderr == ""
