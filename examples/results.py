@@ -47,13 +47,14 @@ class Case:
     sample: str = ""            # a scikit-image sample the case reads from INPUTS
     tables: tuple[str, ...] = ("summary", "full", "times", "reflections")  # the tables it is a row of
     variant_of: str = ""        # the default case this one changes one thing of (a before-and-after table's pair)
-    edit: tuple[str, str] = ()  # (line, its replacement): the default profile with that line changed
+    edit: tuple[str, str, str] = ()  # (section, key, TOML value): the default profile with that one setting
 
 
-# The default profile designing for the ideal point light, and a flat LED facing up where it serves best.
-POINT_DESIGN = ('design_light = "led"', 'design_light = "point"')
-SLOTTED = ("slot_width_mm = 0.0", "slot_width_mm = 1.0")
-LOW_LIGHT = ("light_height_mm = 45.0", "light_height_mm = 15.0")
+# The default profile designing for the ideal point light, with slots, and a flat LED facing up where it
+# serves best.
+POINT_DESIGN = ("optimize", "design_light", '"point"')
+SLOTTED = ("lens", "slot_width_mm", "1.0")
+LOW_LIGHT = ("lens", "light_height_mm", "15.0")
 
 
 CASES = (
@@ -100,15 +101,11 @@ CASES = (
 )
 
 def _edited_profile(case: Case) -> Path:
-    """The default profile with ``case.edit``'s line changed, written for the case."""
-    line, replacement = case.edit
-    text = (ROOT / "profiles" / "default.toml").read_text()
-    edited = re.sub(rf"^{re.escape(line)}", replacement, text, count=1, flags=re.M)
-    if edited == text:
-        sys.exit(f"profiles/default.toml has no line '{line}' to change")
+    """A profile on the default's base with ``case.edit``'s one setting, written for the case."""
+    section, key, value = case.edit
     INPUTS.mkdir(parents=True, exist_ok=True)
     path = INPUTS / f"{case.name}.toml"
-    path.write_text(edited)
+    path.write_text(f'base = "default"\n\n[{section}]\n{key} = {value}\n')
     return path
 
 
