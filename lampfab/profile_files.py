@@ -59,8 +59,8 @@ def design_tables(path: Path, sections, chain: tuple[Path, ...] = ()) -> tuple[d
         if not isinstance(base, str) or not base:
             raise LampfabError(f"{path}: base: expected a profile's name or a .toml path, got {base!r}")
         try:
-            base_path = resolve(base if Path(base).is_absolute() or Path(base).suffix != ".toml"
-                                else str(path.parent / base), PROFILE_DIR)
+            # A .toml path is read beside the profile (an absolute one stays as it is).
+            base_path = resolve(str(path.parent / base) if Path(base).suffix == ".toml" else base, PROFILE_DIR)
         except LampfabError as exc:
             raise LampfabError(f"{path}: base: {exc}") from None
         if not base_path.exists():

@@ -159,10 +159,10 @@ def verify(loaded: Loaded, out_dir, image_px: int, photons: int, seed: int, max_
         blur = metrics.compare(led[k], target)
         ghosts = info["ghosts"][k]
         direct = point[k] - ghosts
-        exact = target / max(float(target.sum()), 1e-300) * float(direct.sum())
+        exact = _with_flux(target, direct)
         f = figures["walls"][wall.name] = {
             "pearson": sharp["pearson"], "ssim": sharp["ssim"], "share": info["shares"][k],
-            "ghost_share": float(ghosts.sum() / max(point[k].sum(), 1e-300)),
+            "ghost_share": _share(ghosts, point[k]),
             "direct_ssim": metrics.ssim(direct, target),
             "ssim_ceiling": metrics.ssim(_noisy(exact + ghosts, info["direct_noise"][k]), target),
             "led_pearson": blur["pearson"], "led_ssim": blur["ssim"], "led_share": led_info["shares"][k]}
@@ -211,8 +211,7 @@ def _slots_empty(empty: np.ndarray, empty_ghosts: np.ndarray, led_ghosts: np.nda
     up to about 0.02 more off its SSIM on a black background (bench/RESULTS.md), far
     less than leaving the slots empty does."""
     return {"led_ssim_slots_empty": metrics.ssim(empty, target),
-            "led_ghost_share": float(led_ghosts.sum() / max(led.sum(), 1e-300)),
-            "led_ghost_share_slots_empty": float(empty_ghosts.sum() / max(empty.sum(), 1e-300))}
+            "led_ghost_share": _share(led_ghosts, led), "led_ghost_share_slots_empty": _share(empty_ghosts, empty)}
 
 
 def render_both(loaded: Loaded, image_px: int, photons: int, seed: int, max_bounces: int, ior=None,
@@ -248,7 +247,7 @@ def _led_reference(kernels, k: int, wall: room.Wall, target: np.ndarray, point: 
 
     field = kernels.field(k, wall, target.shape)
     reference = sharpness.blur(target, field, wall)
-    exact = reference / max(float(reference.sum()), 1e-300) * float((led - led_ghosts).sum())
+    exact = _with_flux(reference, led - led_ghosts)
     arrays["led_reference"] = reference
     ceiling = metrics.ssim(_noisy(exact + led_ghosts, led_noise), target)
     return {**kernels.blur_figures(k, wall),
@@ -257,6 +256,16 @@ def _led_reference(kernels, k: int, wall: room.Wall, target: np.ndarray, point: 
             "led_ssim_ceiling": ceiling,
             "led_ssim_photon_noise": metrics.ssim(exact + led_ghosts, target) - ceiling,
             "led_kernel_pearson": metrics.pearson(sharpness.blur(point, field, wall), led)}
+
+
+def _share(part: np.ndarray, whole: np.ndarray) -> float:
+    """The part of a render's light (``whole``) that ``part`` holds (a render's ghosts)."""
+    return float(part.sum() / max(whole.sum(), 1e-300))
+
+
+def _with_flux(image: np.ndarray, like: np.ndarray) -> np.ndarray:
+    """``image`` scaled to the total light of ``like``: a perfect picture of that light."""
+    return image / max(float(image.sum()), 1e-300) * float(like.sum())
 
 
 def _noisy(image: np.ndarray, noise: np.ndarray) -> np.ndarray:
