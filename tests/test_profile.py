@@ -224,7 +224,7 @@ def test_a_bad_base_is_one_clear_error(tmp_path, base, words):
         assert w in str(err.value)
 
 
-@pytest.mark.parametrize("name", ["floor", "quick", "hires"])
+@pytest.mark.parametrize("name", ["floor", "quick", "hires", "fine"])
 def test_the_bundled_variants_follow_the_default_where_they_say_nothing(name):
     variant, default = _resolved(profile.load_design(name)), _resolved(profile.load_design("default"))
     text = (profile.PROFILE_DIR / f"{name}.toml").read_text()

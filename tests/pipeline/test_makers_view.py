@@ -108,6 +108,30 @@ def test_a_line_break_typed_into_make_s_text_breaks_the_line(tmp_path, tiny_prof
     assert r"a typed \n breaks a line" in make("help").stdout
 
 
+def _verified(tmp_path, design: str, ssim_over_ceiling: list[float]) -> Build:
+    """A build folder holding only a verify report whose walls reach those shares of
+    their LED ceiling."""
+    walls = {name: {"led_pearson": 0.98, "led_ssim": 0.9 * share, "led_ssim_ceiling": 0.9}
+             for name, share in zip(("front", "left", "right"), ssim_over_ceiling)}
+    (tmp_path / "verify.json").write_text(json.dumps({"wall_time_s": 60.0,
+                                                       "figures": {"walls": walls, "real_light": "LED"}}))
+    return Build.open(tmp_path, design, "sla_resin")
+
+
+def test_the_summary_names_the_longer_refinement_only_where_it_can_help(tmp_path, capsys):
+    from lampfab.pipeline.summary import summary
+
+    fine = profile.load_design("fine").optimize.iterations
+    summary(_verified(tmp_path, "default", [0.95, 0.86, 0.92]))
+    hint = capsys.readouterr().out.strip().splitlines()[-1]
+    assert "PROFILE=fine" in hint and f"{fine} steps instead of 56" in hint and "0.86 to 0.95" in hint
+    # A floor, 128 px walls or a profile already as long would not gain from it.
+    for design, shares in (("default", [0.95, 0.91, 0.90]), ("fine", [0.95, 0.86, 0.92]),
+                           ("floor", [0.95, 0.86, 0.92]), ("hires", [0.95, 0.86, 0.92])):
+        summary(_verified(tmp_path, design, shares))
+        assert "PROFILE=fine" not in capsys.readouterr().out, design
+
+
 def test_text_lines_hold_each_line_and_only_its_neighbours_margin():
     """Each band of ``text_lines`` holds all of its line's ink: a wall's lines, read one
     by one, show every word whole."""
