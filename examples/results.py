@@ -80,6 +80,8 @@ CASES = (
          ("TARGET=examples/apple.png", "PROFILE=fine"), tables=("full", "times", "reflections")),
     Case("horse_fine", "the horse refined four times as long (PROFILE=fine)",
          ("TARGET=examples/horse.png", "PROFILE=fine"), tables=("full", "times", "reflections")),
+    Case("panorama_fine", "the panorama refined four times as long (PROFILE=fine)",
+         ("PANORAMA=examples/panorama.png", "PROFILE=fine"), tables=("full", "times", "reflections")),
     Case("panel", "the source's prior-work panel (PROFILE=panel)", ("PROFILE=panel",), tables=("full", "times")),
     Case("apple_cnc4", "the apple milled on 4 axes (FAB=acrylic_cnc4)", ("TARGET=examples/apple.png",
                                                                          "FAB=acrylic_cnc4"), tables=("milled", "times")),

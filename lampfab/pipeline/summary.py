@@ -41,7 +41,7 @@ def _longer_refinement(build: Build, figs: dict) -> str | None:
         opt, iterations=fine.optimize.iterations, fine_level_photons=fine.optimize.fine_level_photons))
     if not shares or min(shares) >= LONGER_REFINEMENT_BELOW or longer != fine or opt == fine.optimize:
         return None
-    return (f"sharper: the walls reach {span(shares, lambda v: number(v, 2))} of a perfect outer surface's SSIM; "
+    return (f"sharper: the walls reach {span(shares)} of a perfect outer surface's SSIM; "
             f"PROFILE=fine refines {fine.optimize.iterations} steps instead of {opt.iterations}, "
             f"about two and a half times as long, and comes closer")
 

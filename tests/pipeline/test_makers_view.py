@@ -124,7 +124,7 @@ def test_the_summary_names_the_longer_refinement_only_where_it_can_help(tmp_path
     fine = profile.load_design("fine").optimize.iterations
     summary(_verified(tmp_path, "default", [0.95, 0.86, 0.92]))
     hint = capsys.readouterr().out.strip().splitlines()[-1]
-    assert "PROFILE=fine" in hint and f"{fine} steps instead of 56" in hint and "0.86 to 0.95" in hint
+    assert "PROFILE=fine" in hint and f"{fine} steps instead of 56" in hint and "0.860 to 0.950" in hint
     # A floor, 128 px walls or a profile already as long would not gain from it.
     for design, shares in (("default", [0.95, 0.91, 0.90]), ("fine", [0.95, 0.86, 0.92]),
                            ("floor", [0.95, 0.86, 0.92]), ("hires", [0.95, 0.86, 0.92])):
