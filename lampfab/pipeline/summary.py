@@ -39,7 +39,8 @@ def _longer_refinement(build: Build, figs: dict) -> str | None:
     fine, opt = profile.load_design("fine"), build.design.optimize
     longer = dataclasses.replace(build.design, name=fine.name, path=fine.path, optimize=dataclasses.replace(
         opt, iterations=fine.optimize.iterations, fine_level_photons=fine.optimize.fine_level_photons))
-    if not shares or min(shares) >= LONGER_REFINEMENT_BELOW or longer != fine or opt == fine.optimize:
+    if (not shares or min(shares) >= LONGER_REFINEMENT_BELOW or longer != fine
+            or opt.iterations >= fine.optimize.iterations):
         return None
     return (f"sharper: the walls reach {span(shares)} of a perfect outer surface's SSIM; "
             f"PROFILE=fine refines {fine.optimize.iterations} steps instead of {opt.iterations}, "

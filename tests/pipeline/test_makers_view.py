@@ -130,6 +130,10 @@ def test_the_summary_names_the_longer_refinement_only_where_it_can_help(tmp_path
                            ("floor", [0.95, 0.86, 0.92]), ("hires", [0.95, 0.86, 0.92])):
         summary(_verified(tmp_path, design, shares))
         assert "PROFILE=fine" not in capsys.readouterr().out, design
+    longer = tmp_path / "longer.toml"
+    longer.write_text(f'base = "default"\n[optimize]\niterations = {fine + 76}\n')
+    summary(_verified(tmp_path, str(longer), [0.95, 0.86, 0.92]))
+    assert "PROFILE=fine" not in capsys.readouterr().out
 
 
 def test_text_lines_hold_each_line_and_only_its_neighbours_margin():
