@@ -44,7 +44,7 @@ def _longer_refinement(build: Build, figs: dict) -> str | None:
         return None
     return (f"sharper: the walls reach {span(shares)} of a perfect outer surface's SSIM; "
             f"PROFILE=fine refines {fine.optimize.iterations} steps instead of {opt.iterations}, "
-            f"about two and a half times as long, and comes closer")
+            f"about two and a half times as long: often closer, not on every picture (docs/results.md)")
 
 
 def _key_figure(stage: str, figs: dict) -> str:
