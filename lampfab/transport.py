@@ -3,12 +3,15 @@ that lands it there.
 
 1. Photons leave the LED's point light (a post's: each face's centre) on a stratified grid
    of directions, traced through the actual inner layer (``raymap.stratified_photons``).
-   Each 90° sector of the lens sends its light to the wall it faces (the source's 5.2).
+   Each 90° sector of the lens sends its light to the wall it faces (the source's 5.2;
+   ``sectors``).
 2. For each wall, entropic optimal transport (``ot``) from the sector's light, laid out by
    emission angle, to the wall's target image gives every photon a goal (none to light
    that meets the outer surface in another sector).  A band above and below the image
    takes ``dump_share`` of the light, which the lens's top and bottom cannot squeeze in
-   under the profile's slopes.
+   under the profile's slopes; where the picture's light sits so high in its frame that a
+   print would have to lift light farther than it can, the band below takes more
+   (``band_shares``).
 3. ``raymap.RayMap`` fits the heightmap (coarse grid, then the profile's) so that each
    photon, refracted at the facet of the tessellated surface it meets, lands at its goal.
 4. Correction passes trace the lens, move the light from where it really lands part of
@@ -33,7 +36,9 @@ from scipy.ndimage import map_coordinates
 from . import flow, ot, raymap, surface
 from .limits import Limits, limit_shape
 from .profile import Optimize
-from .room import SECTOR_WIDTH_DEG, Wall
+from .room import Wall
+from .sectors import (REACH_MARGIN, direction, exit_azimuth_deg, frame_angles, max_deflection_deg, pixel_angles,
+                      sector_of, sector_spans, unit)
 from .source import Source
 
 # Photon strata around the lens per heightmap node: four photons cross each node column.
@@ -43,23 +48,31 @@ AZIMUTH_STRATA_PER_NODE = 4
 # smooth density, twice the node resolution around.
 CELL_STRATA = 2
 
-# Share of the deflection a slope at the profile's limit can make that a photon may need
-# to reach its wall at all; beyond it the photon gets no goal (the floor's sector sends
-# its upper half to the ceiling).
-REACH_MARGIN = 0.8
-
 # The band above and below the image that takes the dumped light is this share of the
 # image's height; a correction pass sees landings this far (as a share of width and
 # height) past the image's edges.
 BAND_SHARE = 0.25
 
-# A wall's sector follows its image's light centroid at most this far (degrees): beyond
-# it the sector would face the next wall more than its own.
-MAX_SECTOR_SHIFT_DEG = 30.0
-# Below this shift (degrees) a sector stays on its nominal span, whose ends are the
-# creases of a creased lens: a slight net tilt of the sector costs less than light
-# crossing to the next wall away from a crease.
-MIN_SECTOR_SHIFT_DEG = 3.0
+# The light a sector sends up its wall, quantile by quantile, should land on the same
+# quantile of the picture's rows (the monotone map).  Lifting the lens's lower light,
+# which leaves the LED downwards, takes flanks facing down, and a print keeps those within
+# its overhang rule (``limits.OVERHANG_DEG`` past vertical): they lift light crossing the
+# glass 30° downwards by 8° at most.  Where the map asks to lift light farther than the
+# reach (``sector_of``'s), the light lands short, on the picture's black: an umbrella
+# drawn for a test, its canopy in the upper half, asked 37° and hazed its black lower
+# half (LED SSIM 0.46-0.49, 14-16 % of the light on black), a sunset over dark ground
+# asked 43° (0.51); the bundled pictures and scikit-image's photographs ask 7-17°.  So the
+# band below takes more of the light, in steps of BAND_STEP, until the map stays within
+# reach or the band holds MAX_BAND: that light glows below the picture instead of in it
+# (the umbrella 0.69-0.72, the sunset 0.86-0.90; bench/RESULTS.md).  Bending light down
+# takes flanks facing up, which the print makes steeper: the panorama (hills under a dark
+# sky, 31-38° down) and a flat LED facing up (48° down) lost SSIM or light with a larger
+# band above, so that band stays as it is, and so do a milled lens's (no overhang rule;
+# not measured).  The quantiles' tails (TAIL_SHARE at each end) hold too little light to
+# count.
+BAND_STEP = 0.025
+MAX_BAND = 0.4
+TAIL_SHARE = 0.005
 
 # Entropic blur of the transport, in target pixels (rms): sharp, but smooth enough that
 # nearby photons get nearby goals.
@@ -116,7 +129,9 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     fit (twice that on the coarse grid) with the ``smoothness`` penalty on the
     ``tessellation``'s facets, ``transport_corrections`` times ``transport_rounds`` steps
     of trace-and-refit passes (up to ``transport_rounds`` steps each),
-    ``dump_share`` of the light in the bands beside each image.
+    ``dump_share`` of the light in the bands beside each image, more below where the
+    picture's light sits higher than a print can lift it (``band_shares``; figures'
+    ``bands``).
     ``on_step(figures)`` follows every fitting step (``fit_steps`` of them: a progress bar),
     ``on_pass(heights)`` sees the (nu, nv) surface after every fit (the benchmark times them).
     Where ``limits`` may steepen (``steepest_slope_deg``) and the first fit lands the light
@@ -136,6 +151,10 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     exit_deg = exit_azimuth_deg(ph, cyl.radius_mm)
     coarse = coarse_grid(grid)
     first_steps = 2 * iterations if coarse != grid else iterations
+    # The preferred limit's reach, a steepened fit's too: steeper flanks, past the critical
+    # angle, bend radial light less, and the bands should not change with the fit.
+    reach_deg = (REACH_MARGIN * max_deflection_deg(ior, limits.max_slope_deg)
+                 if limits.max_overhang_deg is not None else None)
 
     def first_fit(limits: Limits, on_step) -> dict:
         """Goals from the source and the first fit (on the coarse grid if there is one)
@@ -145,10 +164,11 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
         plain = fitter.trace(np.zeros(coarse))
         lit = np.zeros(len(wall_of), bool)
         lit[plain.index[plain.ok]] = True
-        goals, marginal = source_goals(ph, wall_of, lit, walls, spans, targets, light_mm, dump_share)
+        goals, marginal, bands = source_goals(ph, wall_of, lit, walls, spans, targets, light_mm, dump_share,
+                                              reach_deg)
         heights, fit = fitter.fit(np.zeros(coarse), goals, first_steps, on_step)
         return dict(limits=limits, wall_of=wall_of, fitter=fitter, lit=lit, goals=goals, marginal=marginal,
-                    heights=heights, fit=fit)
+                    bands=bands, heights=heights, fit=fit)
 
     start = first_fit(limits, on_step)
     pixel_mm = np.mean([wall.width_mm / target.shape[1] for wall, target in zip(walls, targets)])
@@ -161,12 +181,16 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
         first_errors[f"{limits.steepest_slope_deg:g}"] = steep["fit"]["rms_landing_error_mm"]
         if steep["fit"]["rms_landing_error_mm"] < (1.0 - STEEPEN_MIN_GAIN) * preferred_error:
             start = steep
-    limits, wall_of, fitter, goals, heights, fit = (start[k] for k in ("limits", "wall_of", "fitter", "goals",
-                                                                         "heights", "fit"))
-    figures = {"photons": int(len(wall_of)), "ot_marginal_error": start["marginal"], "passes": [],
+    limits, wall_of, fitter, goals, bands, heights, fit = (start[k] for k in ("limits", "wall_of", "fitter", "goals",
+                                                                                "bands", "heights", "fit"))
+    figures = {"photons": int(len(wall_of)), "ot_marginal_error": start["marginal"], "passes": [], "bands": bands,
                "sectors_deg": {name: [round(lo, 2), round(hi, 2)] for name, (lo, hi) in spans.items()},
                "first_fit_rms_landing_error_mm": first_errors, "slope_limit_deg": limits.max_slope_deg}
     log(f"transport: {len(wall_of)} photons, {start['lit'].sum()} reach a wall's sector through the side")
+    for name, b in bands.items():
+        if b["below"] > dump_share / 2 + 1e-9:
+            log(f"transport: {name}: the picture's light sits higher than the lens can lift its lower light; "
+                f"the band below it takes {b['below']:.1%} of the light")
 
     report = on_pass or (lambda h: None)
     if coarse != grid:
@@ -178,7 +202,7 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     budget, kept_error = opt.transport_corrections * iterations, np.inf
     while True:
         report(current)
-        goals, landed = landing_goals(fitter.trace(current), wall_of, walls, targets, dump_share)
+        goals, landed = landing_goals(fitter.trace(current), wall_of, walls, targets, bands)
         figures["passes"].append({**fit, "landed_density_error": landed})
         error = np.mean(list(landed.values()))
         log(f"transport: pass {len(figures['passes']) - 1}: {fit['steps_taken']} steps, "
@@ -213,118 +237,19 @@ def fit_steps(grid: tuple[int, int], iterations: int, corrections: int) -> int:
     return (2 * iterations if coarse_grid(grid) != grid else 0) + iterations * (1 + corrections)
 
 
-def sector_spans(walls: list[Wall], targets: list[np.ndarray], light_mm: np.ndarray) -> dict[str, tuple[float, float]]:
-    """The span of u (degrees, lo < hi) whose light each wall receives.
-
-    A sector centred on its wall must shift its light sideways on average when the
-    image's light is off-centre (a portrait lit from one side): every sector then winds
-    the radius the same way round the lamp, which a closed surface cannot do within its
-    offset bound.  So each sector is centred on the angle of its image's light centroid
-    instead (its light then needs no net sideways shift) when its centroid lies more than
-    ``MIN_SECTOR_SHIFT_DEG`` off centre; neighbouring sectors meet half way between their
-    centres.  A side without a neighbouring wall reaches at least as far as the centred
-    sector would.
-    """
-    centre = {}
-    for wall, target in zip(walls, targets):
-        rows, cols = target.shape
-        across, _ = _pixel_angles(wall, light_mm, cols, rows, 0)
-        column_mass = target.sum(axis=0)
-        shift = float(np.clip(np.degrees(column_mass @ across / column_mass.sum()),
-                              -MAX_SECTOR_SHIFT_DEG, MAX_SECTOR_SHIFT_DEG))
-        shift = shift if abs(shift) >= MIN_SECTOR_SHIFT_DEG else 0.0
-        # The image's right axis runs against u seen from the lamp (room.py's layout).
-        sign = -1.0 if float(wall.right @ _tangent(np.mean(wall.sector_deg()))) < 0 else 1.0
-        centre[wall.name] = float(np.mean(wall.sector_deg())) + sign * shift
-    half = SECTOR_WIDTH_DEG / 2
-    out = {}
-    for wall in walls:
-        c, nominal = centre[wall.name], float(np.mean(wall.sector_deg()))
-        lo, hi = min(c, nominal) - half, max(c, nominal) + half
-        for other in walls:
-            c2 = centre[other.name]
-            gap = (np.mean(other.sector_deg()) - nominal) % 360
-            if gap == SECTOR_WIDTH_DEG:  # the neighbour on the high-u side
-                hi = 0.5 * (c + c2 + (360 if c2 < c else 0))
-            elif gap == 360 - SECTOR_WIDTH_DEG:  # the neighbour on the low-u side
-                lo = 0.5 * (c + c2 - (360 if c2 > c else 0))
-        out[wall.name] = (lo, hi)
-    return out
-
-
-def _tangent(u_deg: float) -> np.ndarray:
-    u = np.radians(u_deg)
-    return np.array([-np.sin(u), np.cos(u), 0.0])
-
-
-def sector_of(emitted: np.ndarray, walls: list[Wall], spans: dict[str, tuple[float, float]], light_mm: np.ndarray,
-              ior: float, max_tilt_deg: float, exit_deg: np.ndarray | None = None) -> np.ndarray:
-    """(n,) int: the wall whose sector (``spans``) each photon leaves through (by emission
-    azimuth), or -1 where no wall's sector holds it, the photon cannot reach its wall with
-    a makeable slope, or (given ``exit_azimuth_deg``) it meets the outer surface in another."""
-    reach = np.radians(REACH_MARGIN * max_deflection_deg(ior, max_tilt_deg))
-    out = span_of(np.degrees(np.arctan2(emitted[:, 1], emitted[:, 0])), walls, spans)
-    if exit_deg is not None:
-        # A post's light leaves its faces off the axis: past an off-centre sector's edge some meets
-        # the outer surface in the next sector; with goals, it asked the crease to light two walls.
-        out[span_of(exit_deg, walls, spans) != out] = -1
-    for k, wall in enumerate(walls):
-        out[(out == k) & (_angle_to_rectangle(wall, light_mm, emitted) > reach)] = -1
-    return out
-
-
-def span_of(azimuth_deg: np.ndarray, walls: list[Wall], spans: dict[str, tuple[float, float]]) -> np.ndarray:
-    """(n,) int: the wall whose span of u (``spans``) holds each azimuth (degrees), -1 for none."""
-    out = np.full(len(azimuth_deg), -1)
-    for k, wall in enumerate(walls):
-        lo, hi = spans[wall.name]
-        out[np.mod(azimuth_deg - lo, 360.0) < hi - lo] = k
-    return out
-
-
-def exit_azimuth_deg(ph: raymap.Photons, radius_mm: float) -> np.ndarray:
-    """(n,) degrees: the azimuth at which each photon's ray in the glass meets the plain
-    outer cylinder of ``radius_mm`` about the lamp's axis."""
-    o, d = ph.origin[:, :2], ph.direction[:, :2]
-    a, b = np.maximum(np.sum(d * d, axis=1), 1e-300), np.sum(o * d, axis=1)  # a photon going straight up stays
-    t = (-b + np.sqrt(np.maximum(b * b - a * (np.sum(o * o, axis=1) - radius_mm**2), 0.0))) / a
-    return np.degrees(np.arctan2(o[:, 1] + t * d[:, 1], o[:, 0] + t * d[:, 0]))
-
-
-def max_deflection_deg(ior: float, max_tilt_deg: float) -> float:
-    """How far a surface tilted at most ``max_tilt_deg`` bends light leaving glass along
-    its radial direction."""
-    tilt = np.radians(max_tilt_deg)
-    return float(np.degrees(np.arcsin(min(ior * np.sin(tilt), 1.0)) - tilt))
-
-
-def _angle_to_rectangle(wall: Wall, light_mm: np.ndarray, directions: np.ndarray) -> np.ndarray:
-    """(n,) rad between each direction from the light and the nearest point of the wall's
-    image (0 inside it; pi for directions away from the wall's plane)."""
-    normal = wall.normal
-    denom = directions @ normal
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = ((wall.origin - light_mm) @ normal) / denom
-    hit = light_mm + np.where(denom < 0, t, 1e9)[:, None] * directions
-    rel = hit - wall.origin
-    a = np.clip(rel @ wall.right / wall.width_mm**2, 0, 1)
-    b = np.clip(rel @ wall.down / wall.height_mm**2, 0, 1)
-    nearest = _unit(wall.origin + a[:, None] * wall.right + b[:, None] * wall.down - light_mm)
-    angle = np.arccos(np.clip(np.sum(nearest * directions, axis=1), -1, 1))
-    return np.where(denom < 0, angle, np.pi)
-
-
 def source_goals(ph: raymap.Photons, wall_of: np.ndarray, lit: np.ndarray, walls: list[Wall],
                  spans: dict[str, tuple[float, float]], targets: list[np.ndarray], light_mm: np.ndarray,
-                 dump_share: float) -> tuple[np.ndarray, dict]:
+                 dump_share: float, reach_deg: float | None) -> tuple[np.ndarray, dict, dict]:
     """Each photon's goal (n, 2) mm on its wall (NaN: none), from the OT of its sector's
-    light, laid out by emission angle, onto the target image with its bands.
+    light, laid out by emission angle, onto the target image with its bands
+    (``band_shares`` of ``dump_share``, within the lens's reach up ``reach_deg``).
 
     ``lit``: photons whose light reaches the wall side of the lens through its side (the
     transported mass).  Source and target are both in angles as seen from the light, so
-    the quadratic cost is isotropic.  Returns (goals, {wall: OT marginal error})."""
+    the quadratic cost is isotropic.  Returns (goals, {wall: OT marginal error}, {wall:
+    ``band_shares``' figures})."""
     goals = np.full((len(wall_of), 2), np.nan)
-    errors = {}
+    errors, bands = {}, {}
     n2 = ph.n_elevation // CELL_STRATA
     for k, (wall, target) in enumerate(zip(walls, targets)):
         mine = np.flatnonzero(wall_of == k)
@@ -337,25 +262,64 @@ def source_goals(ph: raymap.Photons, wall_of: np.ndarray, lit: np.ndarray, walls
                   np.where(lit[mine], ph.weight[mine], 0.0))
         # Cell centres as emission directions: across the sector on the wall's centre
         # elevation, up the sector's centre azimuth.
-        centre_dir = _unit(wall.centre - light_mm)
+        centre_dir = unit(wall.centre - light_mm)
         azimuth = np.radians(lo) + (np.arange(n1) + 0.5) * np.radians(CELL_STRATA * 360.0 / ph.n_azimuth)
         elevation = np.arcsin(-1.0 + 2.0 * (np.arange(n2) + 0.5) / n2)
         mid_az = np.radians(float(np.mean(wall.sector_deg())))
         mid_el = np.arcsin(np.clip(centre_dir[2], -1, 1))
-        x1 = _frame_angles(wall, light_mm, _direction(azimuth, np.full(n1, mid_el)))[0]
-        x2 = _frame_angles(wall, light_mm, _direction(np.full(n2, mid_az), elevation))[1]
-        cell_a, cell_b, errors[wall.name] = _transport(mass, x1, x2, wall, light_mm, target, dump_share)
+        x1 = frame_angles(wall, light_mm, direction(azimuth, np.full(n1, mid_el)))[0]
+        x2 = frame_angles(wall, light_mm, direction(np.full(n2, mid_az), elevation))[1]
+        bands[wall.name] = band_shares(mass.sum(axis=0), x2, wall, light_mm, target, dump_share, reach_deg)
+        shares = (bands[wall.name]["above"], bands[wall.name]["below"])
+        cell_a, cell_b, errors[wall.name] = _transport(mass, x1, x2, wall, light_mm, target, shares)
         coords = [across - 0.5, up - 0.5]
         goals[mine, 0] = map_coordinates(cell_a, coords, order=1, mode="nearest")
         goals[mine, 1] = map_coordinates(cell_b, coords, order=1, mode="nearest")
-    return goals, errors
+    return goals, errors, bands
+
+
+def band_shares(elevation_mass: np.ndarray, x2: np.ndarray, wall: Wall, light_mm: np.ndarray, target: np.ndarray,
+                dump_share: float, reach_deg: float | None) -> dict:
+    """The shares of a sector's light the bands above and below ``target`` take: half of
+    ``dump_share`` each, and more below where the monotone map of the light up the wall
+    onto the picture's rows would lift it farther than ``reach_deg`` (None: never), until
+    it does not (``BAND_STEP``, ``MAX_BAND``).
+
+    ``elevation_mass``: (n2,) the sector's light by emission elevation, at ``x2`` (n2,)
+    rad, its angle along the image's down axis.  Returns {"above", "below": shares,
+    "bend_deg": [most up (negative), most down] of the map with those bands, "reach_deg"}."""
+    above = below = dump_share / 2
+    while True:
+        bend = vertical_bend_deg(elevation_mass, x2, wall, light_mm, target, (above, below))
+        if reach_deg is None or -bend[0] <= reach_deg or below >= MAX_BAND - 1e-9:  # float steps
+            return {"above": above, "below": below, "bend_deg": bend, "reach_deg": reach_deg}
+        below += BAND_STEP
+
+
+def vertical_bend_deg(elevation_mass: np.ndarray, x2: np.ndarray, wall: Wall, light_mm: np.ndarray,
+                      target: np.ndarray, shares: tuple[float, float]) -> list[float]:
+    """[most up (negative), most down] degrees: how far the monotone map from the light
+    (``elevation_mass`` (n2,) at angles ``x2`` (n2,) rad down the image's axis) onto the
+    rows of ``target`` with bands holding ``shares`` (above, below) bends it, over the
+    light's quantiles but their tails (``TAIL_SHARE``)."""
+    rows, cols = target.shape
+    pad = max(1, int(rows * BAND_SHARE))
+    _, y2 = pixel_angles(wall, light_mm, cols, rows, pad)
+    order = np.argsort(x2)
+    # A hair of mass in every cell and row keeps the cumulative sums increasing for interp.
+    source = np.cumsum(elevation_mass[order] + (1e-12 * elevation_mass.sum() or 1.0))
+    image = np.cumsum(_banded(target, pad, shares).sum(axis=1) + 1e-12)
+    q = np.linspace(TAIL_SHARE, 1.0 - TAIL_SHARE, 199)
+    bend = np.degrees(np.interp(q, image / image[-1], y2) - np.interp(q, source / source[-1], x2[order]))
+    return [float(bend.min()), float(bend.max())]
 
 
 def landing_goals(land: raymap.Landing, wall_of: np.ndarray, walls: list[Wall], targets: list[np.ndarray],
-                  dump_share: float) -> tuple[np.ndarray, dict]:
+                  bands: dict) -> tuple[np.ndarray, dict]:
     """New goals (n, 2) mm from where the photons land now: ``flow`` moves the landed
     photons (on the image's pixel grid, extended by ``BAND_SHARE`` past every edge)
-    ``FLOW_GAIN`` of the way towards the target with its bands.  Returns (goals, {wall:
+    ``FLOW_GAIN`` of the way towards the target with its bands (``bands``: {wall:
+    ``band_shares``' figures}).  Returns (goals, {wall:
     how far the landed light's density is from that target, L1 of unit masses, 0-2})."""
     goals = np.full((len(wall_of), 2), np.nan)
     landed_error = {}
@@ -367,7 +331,7 @@ def landing_goals(land: raymap.Landing, wall_of: np.ndarray, walls: list[Wall], 
         y = land.xy[pick, 1] / wall.height_mm * rows + pad_r
         width, height = cols + 2 * pad_c, rows + 2 * pad_r
         padded = np.zeros((height, width))
-        padded[:, pad_c:pad_c + cols] = _banded(target, pad_r, dump_share)
+        padded[:, pad_c:pad_c + cols] = _banded(target, pad_r, (bands[wall.name]["above"], bands[wall.name]["below"]))
         # Light landing past the margin moves as if from its edge: on by the same step.
         xc, yc = np.clip(x, 0, width - 1e-9), np.clip(y, 0, height - 1e-9)
         landed, _, _ = np.histogram2d(xc, yc, bins=[width, height], range=[[0, width], [0, height]])
@@ -379,24 +343,27 @@ def landing_goals(land: raymap.Landing, wall_of: np.ndarray, walls: list[Wall], 
     return goals, landed_error
 
 
-def _banded(target: np.ndarray, pad_rows: int, dump_share: float) -> np.ndarray:
-    """(rows + 2 pad_rows, cols) mass: the target with 1 - dump_share of the light and
-    uniform bands above and below holding dump_share."""
+def _banded(target: np.ndarray, pad_rows: int, shares: tuple[float, float]) -> np.ndarray:
+    """(rows + 2 pad_rows, cols) mass: the target with the light the bands leave, and
+    uniform bands above and below holding ``shares`` (above, below) of it."""
     rows, cols = target.shape
-    out = np.pad(target / target.sum() * (1.0 - dump_share), ((pad_rows, pad_rows), (0, 0)))
-    if dump_share > 0:
-        out[:pad_rows] = out[-pad_rows:] = dump_share / (2 * pad_rows * cols)
+    above, below = shares
+    out = np.pad(target / target.sum() * (1.0 - (above + below)), ((pad_rows, pad_rows), (0, 0)))
+    if pad_rows:
+        out[:pad_rows] = above / (pad_rows * cols)
+        out[rows + pad_rows:] = below / (pad_rows * cols)
     return out
 
 
 def _transport(mass: np.ndarray, x1: np.ndarray, x2: np.ndarray, wall: Wall, light_mm: np.ndarray,
-               target: np.ndarray, dump_share: float) -> tuple[np.ndarray, np.ndarray, float]:
+               target: np.ndarray, shares: tuple[float, float]) -> tuple[np.ndarray, np.ndarray, float]:
     """Goal of every source cell (mm along the image's right and down axes) from the OT of
-    ``mass`` (n1, n2) at angles (x1, x2) onto the banded target."""
+    ``mass`` (n1, n2) at angles (x1, x2) onto the target with bands holding ``shares``
+    (above, below) of the light."""
     rows, cols = target.shape
-    pad = max(1, int(rows * BAND_SHARE)) if dump_share > 0 else 0
-    banded = _banded(target, pad, dump_share)
-    y1, y2 = _pixel_angles(wall, light_mm, cols, rows, pad)
+    pad = max(1, int(rows * BAND_SHARE)) if sum(shares) > 0 else 0
+    banded = _banded(target, pad, shares)
+    y1, y2 = pixel_angles(wall, light_mm, cols, rows, pad)
     shift = min(x1.min(), x2.min(), y1.min(), y2.min()) - 1.0  # positive coordinates for the log-domain maps
     blur = (BLUR_PX * (y1[-1] - y1[0]) / (cols - 1)) ** 2
     with warnings.catch_warnings():
@@ -408,32 +375,6 @@ def _transport(mass: np.ndarray, x1: np.ndarray, x2: np.ndarray, wall: Wall, lig
     return across, down, err
 
 
-def _pixel_angles(wall: Wall, light_mm: np.ndarray, cols: int, rows: int, pad_rows: int
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Angles (rad) under which the light sees the wall's pixel column centres (on the
-    image's middle row) and row centres (on its middle column, ``pad_rows`` more rows
-    past each edge), each increasing along the image's axis."""
-    a = (np.arange(cols) + 0.5) / cols
-    b = (np.arange(-pad_rows, rows + pad_rows) + 0.5) / rows
-    across = wall.centre + (a[:, None] - 0.5) * wall.right - light_mm
-    down = wall.centre + (b[:, None] - 0.5) * wall.down - light_mm
-    return _frame_angles(wall, light_mm, across)[0], _frame_angles(wall, light_mm, down)[1]
-
-
-def _frame_angles(wall: Wall, light_mm: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(n,) rad each: the directions' angles from the light's line to the wall's centre,
-    along the image's right axis and along its down axis."""
-    centre = _unit(wall.centre - light_mm)
-    right = _unit(wall.right - (wall.right @ centre) * centre)
-    down = _unit(wall.down - (wall.down @ centre) * centre)
-    forward = directions @ centre
-    return np.arctan2(directions @ right, forward), np.arctan2(directions @ down, forward)
-
-
-def _direction(azimuth: np.ndarray, elevation: np.ndarray) -> np.ndarray:
-    return np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], 1)
-
-
 def snell_normals(d_in: np.ndarray, d_out: np.ndarray, ior: float) -> np.ndarray:
     """Outward unit normals that refract d_in (in glass) into d_out (in air).
 
@@ -442,9 +383,3 @@ def snell_normals(d_in: np.ndarray, d_out: np.ndarray, ior: float) -> np.ndarray
     """
     n = ior * d_in - d_out
     return n / np.linalg.norm(n, axis=-1, keepdims=True)
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    """Unit vectors along the last axis."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return v / np.linalg.norm(v, axis=-1, keepdims=True)

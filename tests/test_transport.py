@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from lampfab import concavity, curvature, limits, raymap, room, surface, trace, transport
+from lampfab import concavity, curvature, limits, raymap, room, sectors, surface, trace, transport
 from lampfab.limits import Limits
 from lampfab.profile import Optimize
 from lampfab.source import Source
@@ -42,7 +42,7 @@ def test_photons_cover_the_sphere_and_enter_the_glass(photons):
 def test_landing_agrees_with_the_photon_tracer(mi, photons, mid_design, cyl):
     """Where raymap says a photon lands is the pixel Mitsuba's tracer puts it in."""
     walls = room.walls(mid_design)
-    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(mid_design), 1.5, 45.0)
+    wall_of = sectors.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(mid_design), 1.5, 45.0)
     fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, PRINTED, 1e-2)
     rng = np.random.default_rng(0)
     heights = 2.0 * rng.standard_normal((32, 9))
@@ -73,7 +73,7 @@ def _bumpy_goals(photons, design, cyl, tilt):
     """A fitter on a 32 x 9 grid, a known bumpy surface (plus ``tilt``, mm, broadcast over
     it), and the goals it lands each photon at."""
     walls = room.walls(design)
-    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(design), 1.5, 45.0)
+    wall_of = sectors.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(design), 1.5, 45.0)
     fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, PRINTED, 1e-4)
     u = cyl.node_u(32)[:, None]
     z = cyl.node_z(9)[None, :]
@@ -123,7 +123,7 @@ def test_a_photon_without_a_landing_derivative_steers_nothing(photons, mid_desig
     """Where a difference of the landing is undefined (NaN), the fit's linear system leaves
     that photon out instead of turning NaN."""
     walls = room.walls(mid_design)
-    wall_of = transport.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(mid_design), 1.5, 45.0)
+    wall_of = sectors.sector_of(photons.emitted, walls, _nominal(walls), room.light_position(mid_design), 1.5, 45.0)
     fitter = raymap.RayMap(cyl, 2, photons, walls, wall_of, 1.5, PRINTED, 1e-4)
     heights = np.zeros((32, 9))
     grid = fitter.grid(heights.shape)
@@ -155,11 +155,11 @@ def test_sectors_follow_the_walls_and_skip_light_no_slope_can_reach(mid_design):
     el = np.radians([0.0, 10.0, -10.0, -40.0, 40.0])
     d = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], 1)
     names = [w.name for w in walls]
-    got = transport.sector_of(d, walls, _nominal(walls), light, 1.5, 45.0)
+    got = sectors.sector_of(d, walls, _nominal(walls), light, 1.5, 45.0)
     assert [names[k] if k >= 0 else None for k in got] == ["front", "left", "right", None, None]
     # Behind the lamp, light going down reaches the floor; light going up cannot.
     floor = room.walls(with_floor)
-    assert list(transport.sector_of(d, floor, _nominal(floor), light, 1.5, 45.0)) == [0, -1, -1, 1, -1]
+    assert list(sectors.sector_of(d, floor, _nominal(floor), light, 1.5, 45.0)) == [0, -1, -1, 1, -1]
 
 
 def _left_heavy(shape):
@@ -172,7 +172,7 @@ def _left_heavy(shape):
 def test_centred_images_keep_the_nominal_sectors(mid_design):
     walls = room.walls(mid_design)
     targets = [np.ones(room.image_shape(w, 32)) for w in walls]
-    spans = transport.sector_spans(walls, targets, room.light_position(mid_design))
+    spans = sectors.sector_spans(walls, targets, room.light_position(mid_design))
     for wall in walls:
         assert np.allclose(spans[wall.name], wall.sector_deg(), atol=1e-6)
 
@@ -180,7 +180,7 @@ def test_centred_images_keep_the_nominal_sectors(mid_design):
 def test_off_centre_images_turn_every_sector_the_same_way(mid_design):
     walls = room.walls(mid_design)
     targets = [_left_heavy(room.image_shape(w, 32)) for w in walls]
-    spans = transport.sector_spans(walls, targets, room.light_position(mid_design))
+    spans = sectors.sector_spans(walls, targets, room.light_position(mid_design))
     # Seen from the lamp, the left of every wall's image lies at larger u: each sector
     # turns that way, by the same angle.
     front_shift = np.mean(spans["front"]) - 90.0
@@ -198,7 +198,7 @@ def test_frame_angles_increase_along_the_image_axes(mid_design):
     light = room.light_position(mid_design)
     for wall in room.walls(mid_design):
         points = wall.centre + np.array([[0.0] * 3, 0.1 * wall.right, 0.1 * wall.down])
-        across, down = transport._frame_angles(wall, light, points - light)
+        across, down = sectors.frame_angles(wall, light, points - light)
         assert abs(across[0]) < 1e-12 and abs(down[0]) < 1e-12
         assert across[1] > 0 and abs(down[1]) < 1e-12
         assert down[2] > 0 and abs(across[2]) < 1e-12
@@ -268,23 +268,63 @@ def test_light_that_crosses_a_sectors_edge_inside_the_glass_gets_no_goal(tiny_de
         transport.design(surface.Cylinder(45.0, 90.0, creased=True), walls, targets, *inner_layer, post, 1.5,
                          PRINTED, opt, log=lambda m: None)
     ph, wall_of = seen["ph"], seen["wall_of"]
-    exit_deg = transport.exit_azimuth_deg(ph, 45.0)
+    exit_deg = sectors.exit_azimuth_deg(ph, 45.0)
     # Where the ray in the glass meets the plain cylinder: on the ray, 45 mm from the axis.
     to_exit = 45.0 * np.stack([np.cos(np.radians(exit_deg)), np.sin(np.radians(exit_deg))], 1) - ph.origin[:, :2]
     side = np.linalg.norm(ph.direction[:, :2], axis=1) > 0.1
     a, b = to_exit[side], ph.direction[side, :2]
     assert np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).max() < 1e-6
     assert np.all(np.sum(to_exit[side] * ph.direction[side, :2], axis=1) > 0)
-    spans = transport.sector_spans(walls, targets, post.position)
+    spans = sectors.sector_spans(walls, targets, post.position)
     emitted_deg = np.degrees(np.arctan2(ph.emitted[:, 1], ph.emitted[:, 0]))
-    crossing = (transport.span_of(emitted_deg, walls, spans) != transport.span_of(exit_deg, walls, spans)) \
+    crossing = (sectors.span_of(emitted_deg, walls, spans) != sectors.span_of(exit_deg, walls, spans)) \
         & (ph.weight > 0)
     assert 0.005 < crossing.mean() < 0.05
-    by_emission = transport.sector_of(ph.emitted, walls, spans, post.position, 1.5, PRINTED.max_slope_deg)
+    by_emission = sectors.sector_of(ph.emitted, walls, spans, post.position, 1.5, PRINTED.max_slope_deg)
     assert np.mean(by_emission[crossing] >= 0) > 0.1    # light a wall's sector would otherwise claim
     given = wall_of >= 0
     assert not np.any(given & crossing)
-    assert np.all(transport.span_of(exit_deg[given], walls, spans) == wall_of[given])
+    assert np.all(sectors.span_of(exit_deg[given], walls, spans) == wall_of[given])
+
+
+def _lens_light(wall, light_mm, half_height_deg=45.0, cells=64):
+    """A sector's light by elevation, as ``source_goals`` lays it out: equal mass per
+    cell (photons stratified in sin(elevation)) where it meets the lens's side (within
+    ``half_height_deg`` of level), and its angles down the wall's image axis."""
+    elevation = np.arcsin(-1.0 + 2.0 * (np.arange(cells) + 0.5) / cells)
+    mass = (np.abs(elevation) < np.radians(half_height_deg)).astype(float)
+    azimuth = np.radians(np.mean(wall.sector_deg()))
+    d = np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], 1)
+    return mass, sectors.frame_angles(wall, light_mm, d)[1]
+
+
+@pytest.mark.parametrize("light_rows, grows", [(slice(None), False), (slice(0, 20), True), (slice(28, 48), False)])
+def test_the_band_below_takes_the_light_the_lens_cannot_lift(mid_design, light_rows, grows):
+    """A picture that fills its frame keeps the even bands.  One whose light sits in the
+    top of its frame, to which a print cannot lift the lens's lower light, sends more of
+    the light to the band below it, until the map lifts no farther than the reach.  One
+    whose light sits at the bottom asks the lens to bend its upper light down, which its
+    up-facing flanks can, and so does a milled lens without a reach given (None)."""
+    light = room.light_position(mid_design)
+    wall = room.walls(mid_design)[0]
+    target = np.zeros(room.image_shape(wall, 64))
+    target[light_rows] = 1.0
+    mass, x2 = _lens_light(wall, light)
+    reach = sectors.REACH_MARGIN * sectors.max_deflection_deg(1.5, 60.0)
+    even = transport.vertical_bend_deg(mass, x2, wall, light, target, (0.05, 0.05))
+    bands = transport.band_shares(mass, x2, wall, light, target, 0.1, reach)
+    assert transport.band_shares(mass, x2, wall, light, target, 0.1, None)["below"] == 0.05
+    assert bands["above"] == 0.05
+    if not grows:
+        assert bands["below"] == 0.05 and -even[0] < reach
+        assert light_rows.start is None or even[1] > reach      # the bottom picture asks more down than up
+        return
+    assert -even[0] > reach                                     # evenly banded, the map lifts too far
+    assert bands["below"] > 0.05
+    assert -bands["bend_deg"][0] <= reach or bands["below"] >= transport.MAX_BAND - 1e-9
+    # One step less would still lift too far: the band grows no more than it must.
+    fewer = transport.vertical_bend_deg(mass, x2, wall, light, target, (0.05, bands["below"] - transport.BAND_STEP))
+    assert -fewer[0] > reach
 
 
 @pytest.mark.parametrize("preferred_mm, steep_mm, steepest, chosen", [
@@ -463,7 +503,7 @@ def test_a_ball_end_tool_radius_keeps_hollows_open(inner_layer, mid_design, cyl)
     walls = room.walls(mid_design)
     light = room.light_position(mid_design)
     dense = raymap.stratified_photons(*inner_layer, Source(light), 1.5, 512, 256, seed=3)
-    wall_of = transport.sector_of(dense.emitted, walls, _nominal(walls), light, 1.5, 45.0)
+    wall_of = sectors.sector_of(dense.emitted, walls, _nominal(walls), light, 1.5, 45.0)
     nu, nv = 128, 33
     dimple = np.zeros((nu, nv))
     dimple[32, 16] = -2.0                                    # a hollow in front, a node wide

@@ -77,7 +77,7 @@ def measure(build) -> dict:
     opt = build.design.optimize
     coarse = dataclasses.replace(opt, grid_u=COARSE_GRID[0], grid_v=COARSE_GRID[1], transport_photons=COARSE_PHOTONS,
                                  transport_rounds=COARSE_ROUNDS, transport_corrections=0)
-    heights, _ = build.transport_design(coarse, build.inner(), log=lambda _msg: None)
+    heights, design = build.transport_design(coarse, build.inner(), log=lambda _msg: None)
     lens = build.kind.solid_maker(build)(heights)
     scene = trace.MeshScene(lens.vertices, lens.faces)
     cells = sharpness.Cells.for_photons(0.0, build.design.lens.height_mm, BUDGET_PHOTONS)
@@ -89,11 +89,12 @@ def measure(build) -> dict:
                            opt.seed + 101 + k, build.design.verify.max_bounces, kernel_moments=m)
         moments.append(m)
     kernels = sharpness.Kernels.of(*moments)
-    return summarize(build, kernels)
+    return summarize(build, kernels, design["bands"])
 
 
-def summarize(build, kernels: sharpness.Kernels) -> dict:
-    """plan.json's sharpness figures from the LED's ``kernels`` on a design of this build."""
+def summarize(build, kernels: sharpness.Kernels, bands: dict | None = None) -> dict:
+    """plan.json's sharpness figures from the LED's ``kernels`` on a design of this build,
+    whose transport chose ``bands`` ({wall: ``transport.band_shares``' figures})."""
     px = build.design.optimize.sensor_px
     targets = build.targets(px)
     texts = build.texts_to_read()
@@ -126,7 +127,9 @@ def summarize(build, kernels: sharpness.Kernels) -> dict:
     figures["sharper_led"] = _sharper_led(build, soft)
     unreadable = _unreadable(build, walls)
     figures["text_led"] = _text_led(build, walls, unreadable, text_fields)
-    figures["warnings"] = _warnings(build, walls, figures["sharper_led"], unreadable, figures["text_led"])
+    figures["bands"] = bands or {}
+    figures["warnings"] = (_warnings(build, walls, figures["sharper_led"], unreadable, figures["text_led"])
+                           + _out_of_reach(build, figures["bands"]))
     blur_px = max((max(w["led_blur_px"].values()) for w in walls.values()), default=None)
     figures["finer_design"] = bool(blur_px is not None and blur_px < FINER_DESIGN_BLUR_PX and px < FINER_DESIGN_PX)
     return figures
@@ -290,6 +293,25 @@ def _warnings(build, walls: dict, sharper: dict | None, unreadable: list, text_l
                    f"its blur ({min(blurs):.0f}-{max(blurs):.0f} mm) is over {TEXT_BLUR_EM:g} of the letters' size "
                    f"({min(ems):.0f} mm){_at_the_sides(walls, names)}{evidence}; use fewer words, or {led}")
     return out + _mounting(build)
+
+
+def _out_of_reach(build, bands: dict) -> list[str]:
+    """A warning for the walls whose picture's light sits higher in its frame than the
+    lens can lift its lower light: their band below (``transport.band_shares``) grew past
+    half the profile's ``dump_share``, and that light glows below the picture."""
+    even = build.design.optimize.dump_share / 2
+    high = [name for name, b in bands.items() if b["below"] > even + 1e-9]
+    if not high:
+        return []
+    place = (f"the {', '.join(high)} pictures' light sits high in their frames" if len(high) > 1
+             else f"the {high[0]} picture's light sits high in its frame")
+    glow = [bands[name]["above"] + bands[name]["below"] for name in high]
+    share = f"{min(glow):.0%}" + (f"-{max(glow):.0%}" if max(glow) - min(glow) > 0.005 else "")
+    return [f"{place}: this lens lifts light at most {bands[high[0]]['reach_deg']:.0f}° (a print's down-facing "
+            f"flanks stay within its overhang rule), so {share} of the light goes to glows beside the picture, "
+            f"most of it below, rather than onto its black (a picture that fills its frame: {2 * even:.0%}), and "
+            f"the picture is that much dimmer; to keep more light in it, move its light nearer the frame's middle "
+            f"(pad the image above, or crop it below)"]
 
 
 def _at_the_sides(walls: dict, names) -> str:

@@ -262,3 +262,23 @@ def test_the_verdict_says_soft_when_the_led_blurs_the_pictures_detail_away(text_
     assert tone == "warn" and "LED=" not in line
     line, tone = verdict(build, _verify_figures(budget.DETAIL_SSIM + 0.02), [], None)
     assert tone == "good" and line.startswith("Projects your picture well with the real LED 1.5 mm")
+
+
+def test_plan_warns_where_the_pictures_light_sits_higher_than_the_lens_can_lift_it(tmp_path):
+    """The transport's band below (``transport.band_shares``) grows only where the picture's
+    light sits higher than a print can lift the lens's lower light; plan then says which
+    walls, how much light goes to the glow beside the picture, and what would help."""
+    build = pipeline.Build.open(tmp_path, "default", "sla_resin", "post3535")
+
+    def band(below):
+        return {"above": 0.05, "below": below, "bend_deg": [-20.0, 20.0], "reach_deg": 24.0}
+
+    even = {name: band(0.05) for name in ("front", "left", "right")}
+    assert budget._out_of_reach(build, even) == []
+    high = budget._out_of_reach(build, {name: band(0.225) for name in ("front", "left", "right")})
+    assert len(high) == 1
+    assert "the front, left, right pictures' light sits high in their frames" in high[0]
+    assert "at most 24°" in high[0] and "28% of the light goes to glows beside the picture" in high[0]
+    assert "its frame: 10%" in high[0] and "pad the image above" in high[0]
+    one = budget._out_of_reach(build, {**even, "left": band(0.15)})
+    assert "the left picture's light sits high in its frame" in one[0] and "20% of the light" in one[0]
