@@ -9,8 +9,8 @@ that lands it there.
    emission angle, to the wall's target image gives every photon a goal (none to light
    that meets the outer surface in another sector).  A band above and below the image
    takes ``dump_share`` of the light, which the lens's top and bottom cannot squeeze in
-   under the profile's slopes; where the picture's light sits so high in its frame that a
-   print would have to lift light farther than it can, the band below takes more
+   under the profile's slopes; where the picture's light sits so high in its frame that
+   the lens would have to lift light farther than it can, the band below takes more
    (``band_shares``).
 3. ``raymap.RayMap`` fits the heightmap (coarse grid, then the profile's) so that each
    photon, refracted at the facet of the tessellated surface it meets, lands at its goal.
@@ -57,18 +57,19 @@ BAND_SHARE = 0.25
 # quantile of the picture's rows (the monotone map).  Lifting the lens's lower light,
 # which leaves the LED downwards, takes flanks facing down, and a print keeps those within
 # its overhang rule (``limits.OVERHANG_DEG`` past vertical): they lift light crossing the
-# glass 30° downwards by 8° at most.  Where the map asks to lift light farther than the
+# glass 30° downwards by 8° at most (a milled acrylic lens's, within its 60° slope limit, 18°).
+# Where the map asks to lift light farther than the
 # reach (``sector_of``'s), the light lands short, on the picture's black: an umbrella
 # drawn for a test, its canopy in the upper half, asked 37° and hazed its black lower
 # half (LED SSIM 0.46-0.49, 14-16 % of the light on black), a sunset over dark ground
 # asked 43° (0.51); the bundled pictures and scikit-image's photographs ask 7-17°.  So the
 # band below takes more of the light, in steps of BAND_STEP, until the map stays within
 # reach or the band holds MAX_BAND: that light glows below the picture instead of in it
-# (the umbrella 0.69-0.72, the sunset 0.86-0.90; bench/RESULTS.md).  Bending light down
+# (the umbrella 0.69-0.72, the sunset 0.86-0.90; milled on 4 axes the umbrella 0.31-0.34
+# -> 0.43-0.44; bench/RESULTS.md).  Bending light down
 # takes flanks facing up, which the print makes steeper: the panorama (hills under a dark
 # sky, 31-38° down) and a flat LED facing up (48° down) lost SSIM or light with a larger
-# band above, so that band stays as it is, and so do a milled lens's (no overhang rule;
-# not measured).  The quantiles' tails (TAIL_SHARE at each end) hold too little light to
+# band above, so that band stays as it is.  The quantiles' tails (TAIL_SHARE at each end) hold too little light to
 # count.
 BAND_STEP = 0.025
 MAX_BAND = 0.4
@@ -130,7 +131,7 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     ``tessellation``'s facets, ``transport_corrections`` times ``transport_rounds`` steps
     of trace-and-refit passes (up to ``transport_rounds`` steps each),
     ``dump_share`` of the light in the bands beside each image, more below where the
-    picture's light sits higher than a print can lift it (``band_shares``; figures'
+    picture's light sits higher than the lens can lift it (``band_shares``; figures'
     ``bands``).
     ``on_step(figures)`` follows every fitting step (``fit_steps`` of them: a progress bar),
     ``on_pass(heights)`` sees the (nu, nv) surface after every fit (the benchmark times them).
@@ -153,8 +154,7 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     first_steps = 2 * iterations if coarse != grid else iterations
     # The preferred limit's reach, a steepened fit's too: steeper flanks, past the critical
     # angle, bend radial light less, and the bands should not change with the fit.
-    reach_deg = (REACH_MARGIN * max_deflection_deg(ior, limits.max_slope_deg)
-                 if limits.max_overhang_deg is not None else None)
+    reach_deg = REACH_MARGIN * max_deflection_deg(ior, limits.max_slope_deg)
 
     def first_fit(limits: Limits, on_step) -> dict:
         """Goals from the source and the first fit (on the coarse grid if there is one)
@@ -239,7 +239,7 @@ def fit_steps(grid: tuple[int, int], iterations: int, corrections: int) -> int:
 
 def source_goals(ph: raymap.Photons, wall_of: np.ndarray, lit: np.ndarray, walls: list[Wall],
                  spans: dict[str, tuple[float, float]], targets: list[np.ndarray], light_mm: np.ndarray,
-                 dump_share: float, reach_deg: float | None) -> tuple[np.ndarray, dict, dict]:
+                 dump_share: float, reach_deg: float) -> tuple[np.ndarray, dict, dict]:
     """Each photon's goal (n, 2) mm on its wall (NaN: none), from the OT of its sector's
     light, laid out by emission angle, onto the target image with its bands
     (``band_shares`` of ``dump_share``, within the lens's reach up ``reach_deg``).

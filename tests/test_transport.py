@@ -304,7 +304,7 @@ def test_the_band_below_takes_the_light_the_lens_cannot_lift(mid_design, light_r
     top of its frame, to which a print cannot lift the lens's lower light, sends more of
     the light to the band below it, until the map lifts no farther than the reach.  One
     whose light sits at the bottom asks the lens to bend its upper light down, which its
-    up-facing flanks can, and so does a milled lens without a reach given (None)."""
+    up-facing flanks can; without a reach (None) no band grows."""
     light = room.light_position(mid_design)
     wall = room.walls(mid_design)[0]
     target = np.zeros(room.image_shape(wall, 64))
