@@ -37,8 +37,7 @@ from . import flow, ot, raymap, surface
 from .limits import Limits, limit_shape
 from .profile import Optimize
 from .room import Wall
-from .sectors import (REACH_MARGIN, direction, exit_azimuth_deg, frame_angles, max_deflection_deg, pixel_angles,
-                      sector_of, sector_spans, unit)
+from .sectors import direction, exit_azimuth_deg, frame_angles, pixel_angles, sector_of, sector_spans, unit
 from .source import Source
 
 # Photon strata around the lens per heightmap node: four photons cross each node column.
@@ -55,22 +54,23 @@ BAND_SHARE = 0.25
 
 # The light a sector sends up its wall, quantile by quantile, should land on the same
 # quantile of the picture's rows (the monotone map).  Lifting the lens's lower light,
-# which leaves the LED downwards, takes flanks facing down, and a print keeps those within
-# its overhang rule (``limits.OVERHANG_DEG`` past vertical): they lift light crossing the
-# glass 30° downwards by 8° at most (a milled acrylic lens's, within its 60° slope limit, 18°).
-# Where the map asks to lift light farther than the
-# reach (``sector_of``'s), the light lands short, on the picture's black: an umbrella
-# drawn for a test, its canopy in the upper half, asked 37° and hazed its black lower
-# half (LED SSIM 0.46-0.49, 14-16 % of the light on black), a sunset over dark ground
-# asked 43° (0.51); the bundled pictures and scikit-image's photographs ask 7-17°.  So the
-# band below takes more of the light, in steps of BAND_STEP, until the map stays within
-# reach or the band holds MAX_BAND: that light glows below the picture instead of in it
-# (the umbrella 0.69-0.72, the sunset 0.86-0.90; milled on 4 axes the umbrella 0.31-0.34
-# -> 0.43-0.44; bench/RESULTS.md).  Bending light down
-# takes flanks facing up, which the print makes steeper: the panorama (hills under a dark
-# sky, 31-38° down) and a flat LED facing up (48° down) lost SSIM or light with a larger
-# band above, so that band stays as it is.  The quantiles' tails (TAIL_SHARE at each end) hold too little light to
-# count.
+# which leaves the LED downwards, takes flanks facing down: a print keeps them within its
+# overhang rule (``limits.OVERHANG_DEG`` past vertical), a mill within its slope limit,
+# and they lift light crossing the glass 30° downwards by 8° (a print, a 3-axis mill) or
+# 18° (a 4-axis mill's 60°) at most.  Where the map asks to lift light farther than
+# LIFT_REACH_DEG, the light lands short, on the picture's black: an umbrella drawn for a
+# test, its canopy in the upper half, asked 37° and hazed its black lower half (LED SSIM
+# 0.46-0.49, 14-16 % of the light on black), a sunset over dark ground asked 43° (0.51);
+# the bundled pictures and scikit-image's photographs ask 7-17°, the umbrella drawn
+# centred 24°.  So the band below takes more of the light, in steps of BAND_STEP, until
+# the map stays within reach or the band holds MAX_BAND: that light glows below the
+# picture instead of in it (the umbrella 0.69-0.72, the sunset 0.86-0.90; milled, the
+# umbrella 0.31-0.34 -> 0.43-0.47; bench/RESULTS.md).  Bending light down takes
+# flanks facing up, which a print makes steeper: the panorama (hills under a dark sky,
+# 31-38° down) and a flat LED facing up (48° down) lost SSIM or light with a larger band
+# above, so that band stays as it is.  The quantiles' tails (TAIL_SHARE at each end) hold
+# too little light to count.
+LIFT_REACH_DEG = 24.0
 BAND_STEP = 0.025
 MAX_BAND = 0.4
 TAIL_SHARE = 0.005
@@ -152,10 +152,6 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
     exit_deg = exit_azimuth_deg(ph, cyl.radius_mm)
     coarse = coarse_grid(grid)
     first_steps = 2 * iterations if coarse != grid else iterations
-    # The preferred limit's reach, a steepened fit's too: steeper flanks, past the critical
-    # angle, bend radial light less, and the bands should not change with the fit.
-    reach_deg = REACH_MARGIN * max_deflection_deg(ior, limits.max_slope_deg)
-
     def first_fit(limits: Limits, on_step) -> dict:
         """Goals from the source and the first fit (on the coarse grid if there is one)
         under ``limits``: what the passes start from."""
@@ -165,7 +161,7 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
         lit = np.zeros(len(wall_of), bool)
         lit[plain.index[plain.ok]] = True
         goals, marginal, bands = source_goals(ph, wall_of, lit, walls, spans, targets, light_mm, dump_share,
-                                              reach_deg)
+                                              LIFT_REACH_DEG)
         heights, fit = fitter.fit(np.zeros(coarse), goals, first_steps, on_step)
         return dict(limits=limits, wall_of=wall_of, fitter=fitter, lit=lit, goals=goals, marginal=marginal,
                     bands=bands, heights=heights, fit=fit)

@@ -310,7 +310,7 @@ def test_the_band_below_takes_the_light_the_lens_cannot_lift(mid_design, light_r
     target = np.zeros(room.image_shape(wall, 64))
     target[light_rows] = 1.0
     mass, x2 = _lens_light(wall, light)
-    reach = sectors.REACH_MARGIN * sectors.max_deflection_deg(1.5, 60.0)
+    reach = transport.LIFT_REACH_DEG
     even = transport.vertical_bend_deg(mass, x2, wall, light, target, (0.05, 0.05))
     bands = transport.band_shares(mass, x2, wall, light, target, 0.1, reach)
     assert transport.band_shares(mass, x2, wall, light, target, 0.1, None)["below"] == 0.05

@@ -307,9 +307,10 @@ def _out_of_reach(build, bands: dict) -> list[str]:
              else f"the {high[0]} picture's light sits high in its frame")
     glow = [bands[name]["above"] + bands[name]["below"] for name in high]
     share = f"{min(glow):.0%}" + (f"-{max(glow):.0%}" if max(glow) - min(glow) > 0.005 else "")
-    return [f"{place}: this lens can lift its lower light at most {bands[high[0]]['reach_deg']:.0f}° (its "
-            f"flanks may face down only so steeply), so {share} of the light goes to glows beside the picture, "
-            f"most of it below, rather than onto its black (a picture that fills its frame: {2 * even:.0%}), and "
+    return [f"{place}: lifting the lens's lower light that high would bend it more than "
+            f"{bands[high[0]]['reach_deg']:.0f}°, farther than its flanks can, so {share} of the light goes to glows "
+            f"beside the picture, most of it below, rather than onto its black (a picture that fills its frame: "
+            f"{2 * even:.0%}), and "
             f"the picture is that much dimmer; to keep more light in it, move its light nearer the frame's middle "
             f"(pad the image above, or crop it below)"]
 

@@ -278,7 +278,7 @@ def test_plan_warns_where_the_pictures_light_sits_higher_than_the_lens_can_lift_
     high = budget._out_of_reach(build, {name: band(0.225) for name in ("front", "left", "right")})
     assert len(high) == 1
     assert "the front, left, right pictures' light sits high in their frames" in high[0]
-    assert "lift its lower light at most 24°" in high[0] and "28% of the light goes to glows beside the picture" in high[0]
+    assert "more than 24°, farther than its flanks can" in high[0] and "28% of the light goes to glows beside the picture" in high[0]
     assert "its frame: 10%" in high[0] and "pad the image above" in high[0]
     one = budget._out_of_reach(build, {**even, "left": band(0.15)})
     assert "the left picture's light sits high in its frame" in one[0] and "20% of the light" in one[0]
