@@ -184,7 +184,7 @@ def design(cyl: surface.Cylinder, walls: list[Wall], targets: list[np.ndarray],
                "first_fit_rms_landing_error_mm": first_errors, "slope_limit_deg": limits.max_slope_deg}
     log(f"transport: {len(wall_of)} photons, {start['lit'].sum()} reach a wall's sector through the side")
     for name, b in bands.items():
-        if b["below"] > dump_share / 2 + 1e-9:
+        if b["lifted"]:
             log(f"transport: {name}: the picture's light sits higher than the lens can lift its lower light; "
                 f"the band below it takes {b['below']:.1%} of the light")
 
@@ -283,13 +283,15 @@ def band_shares(elevation_mass: np.ndarray, x2: np.ndarray, wall: Wall, light_mm
 
     ``elevation_mass``: (n2,) the sector's light by emission elevation, at ``x2`` (n2,)
     rad, its angle along the image's down axis.  Returns {"above", "below": shares,
-    "bend_deg": [most up (negative), most down] of the map with those bands, "reach_deg"}."""
+    "bend_deg": [most up (negative), most down] of the map with those bands, "reach_deg",
+    "lifted": whether the band below grew}."""
     above = below = dump_share / 2
+    lifted = False
     while True:
         bend = vertical_bend_deg(elevation_mass, x2, wall, light_mm, target, (above, below))
         if reach_deg is None or -bend[0] <= reach_deg or below >= MAX_BAND - 1e-9:  # float steps
-            return {"above": above, "below": below, "bend_deg": bend, "reach_deg": reach_deg}
-        below += BAND_STEP
+            return {"above": above, "below": below, "bend_deg": bend, "reach_deg": reach_deg, "lifted": lifted}
+        below, lifted = below + BAND_STEP, True
 
 
 def vertical_bend_deg(elevation_mass: np.ndarray, x2: np.ndarray, wall: Wall, light_mm: np.ndarray,

@@ -314,7 +314,7 @@ def test_the_band_below_takes_the_light_the_lens_cannot_lift(mid_design, light_r
     even = transport.vertical_bend_deg(mass, x2, wall, light, target, (0.05, 0.05))
     bands = transport.band_shares(mass, x2, wall, light, target, 0.1, reach)
     assert transport.band_shares(mass, x2, wall, light, target, 0.1, None)["below"] == 0.05
-    assert bands["above"] == 0.05
+    assert bands["above"] == 0.05 and bands["lifted"] == grows
     if not grows:
         assert bands["below"] == 0.05 and -even[0] < reach
         assert light_rows.start is None or even[1] > reach      # the bottom picture asks more down than up

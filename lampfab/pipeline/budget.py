@@ -297,10 +297,9 @@ def _warnings(build, walls: dict, sharper: dict | None, unreadable: list, text_l
 
 def _out_of_reach(build, bands: dict) -> list[str]:
     """A warning for the walls whose picture's light sits higher in its frame than the
-    lens can lift its lower light: their band below (``transport.band_shares``) grew past
-    half the profile's ``dump_share``, and that light glows below the picture."""
-    even = build.design.optimize.dump_share / 2
-    high = [name for name, b in bands.items() if b["below"] > even + 1e-9]
+    lens can lift its lower light: their band below grew (``transport.band_shares``'
+    ``lifted``), and that light glows below the picture."""
+    high = [name for name, b in bands.items() if b["lifted"]]
     if not high:
         return []
     place = (f"the {', '.join(high)} pictures' light sits high in their frames" if len(high) > 1
@@ -310,7 +309,7 @@ def _out_of_reach(build, bands: dict) -> list[str]:
     return [f"{place}: lifting the lens's lower light that high would bend it more than "
             f"{bands[high[0]]['reach_deg']:.0f}°, farther than its flanks can, so {share} of the light goes to glows "
             f"beside the picture, most of it below, rather than onto its black (a picture that fills its frame: "
-            f"{2 * even:.0%}), and "
+            f"{build.design.optimize.dump_share:.0%}), and "
             f"the picture is that much dimmer; to keep more light in it, move its light nearer the frame's middle "
             f"(pad the image above, or crop it below)"]
 

@@ -271,7 +271,7 @@ def test_plan_warns_where_the_pictures_light_sits_higher_than_the_lens_can_lift_
     build = pipeline.Build.open(tmp_path, "default", "sla_resin", "post3535")
 
     def band(below):
-        return {"above": 0.05, "below": below, "bend_deg": [-20.0, 20.0], "reach_deg": 24.0}
+        return {"above": 0.05, "below": below, "bend_deg": [-20.0, 20.0], "reach_deg": 24.0, "lifted": below > 0.05}
 
     even = {name: band(0.05) for name in ("front", "left", "right")}
     assert budget._out_of_reach(build, even) == []
